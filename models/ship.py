@@ -1,0 +1,164 @@
+"""Ship swaying on waves with a rotary IMU on a double-axis gimbal (paper 003, prescribed).
+
+Hull attitude (PSINS Euler angles, ``C_b_t = Rz(yaw) Rx(pitch) Ry(roll)``, see
+``models.attitude``) follows 003 section 4.1:
+yaw = 30 deg + 5 deg cos(2 pi t/7 + pi/3), pitch = 7 deg cos(2 pi t/5 + pi/4),
+roll = 10 deg cos(2 pi t/6 + pi/7). The sway centre moves with plane-frame (E, N, U)
+velocity V_i = A_i w_i cos(w_i t + phi_i). The IMU sits at a body-frame lever arm from
+the sway centre on a gimbal: outer axis body z, inner axis (rotated) x, so
+``C_s_b = Rz(outer) Rx(inner)`` with outer = w2 t, inner = w1 t.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from models.attitude import euler_to_quat
+from models.units import deg
+from models.world import IMU_SENSORS_MJCF, PrescribedWorld
+
+
+@dataclass(frozen=True)
+class ShipSwayMotion:
+    """Prescribed ship motion. Angles rad, periods s, lengths m, rates rad/s.
+
+    Each attitude channel is ``mean + amplitude cos(2 pi t / period + phase)``.
+    Linear sway amplitudes, periods and phases are per plane axis (E, N, U).
+    """
+
+    yaw_mean: float = 30 * deg
+    yaw_amplitude: float = 5 * deg
+    yaw_period: float = 7.0
+    yaw_phase: float = np.pi / 3
+    pitch_amplitude: float = 7 * deg
+    pitch_period: float = 5.0
+    pitch_phase: float = np.pi / 4
+    roll_amplitude: float = 10 * deg
+    roll_period: float = 6.0
+    roll_phase: float = np.pi / 7
+    linear_amplitude: tuple[float, float, float] = (0.02, 0.03, 0.3)
+    linear_period: tuple[float, float, float] = (7.0, 6.0, 8.0)
+    linear_phase: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    lever_arm_b: tuple[float, float, float] = (10.0, 30.0, 10.0)
+    gimbal_outer_rate: float = 6 * deg
+    gimbal_inner_rate: float = 18 * deg
+
+    def euler(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hull Euler angles [pitch, roll, yaw], their first and second derivatives; (N, 3)."""
+        channels = [(0.0, self.pitch_amplitude, self.pitch_period, self.pitch_phase),
+                    (0.0, self.roll_amplitude, self.roll_period, self.roll_phase),
+                    (self.yaw_mean, self.yaw_amplitude, self.yaw_period, self.yaw_phase)]
+        angle, rate, accel = [], [], []
+        for mean, amplitude, period, phase in channels:
+            w = 2 * np.pi / period
+            c, s = np.cos(w * t + phase), np.sin(w * t + phase)
+            angle.append(mean + amplitude * c)
+            rate.append(-amplitude * w * s)
+            accel.append(-amplitude * w * w * c)
+        return np.stack(angle, -1), np.stack(rate, -1), np.stack(accel, -1)
+
+    def hull_angular_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """omega_tb^b (N, 3) rad/s and its time derivative (N, 3) rad/s^2.
+
+        From C_b_t = Rz(psi) Rx(theta) Ry(gamma):
+        omega = Ry^T (Rx^T psi_dot e_z + theta_dot e_x) + gamma_dot e_y.
+        """
+        (th, ga, _), (dth, dga, dps), (ddth, ddga, ddps) = (
+            a.T for a in self.euler(t))
+        sth, cth, sga, cga = np.sin(th), np.cos(th), np.sin(ga), np.cos(ga)
+        omega = np.stack([cga * dth - sga * cth * dps,
+                          sth * dps + dga,
+                          sga * dth + cga * cth * dps], -1)
+        omega_dot = np.stack([
+            -sga * dga * dth + cga * ddth
+            - (cga * dga * cth * dps - sga * sth * dth * dps + sga * cth * ddps),
+            cth * dth * dps + sth * ddps + ddga,
+            cga * dga * dth + sga * ddth
+            + (-sga * dga * cth * dps - cga * sth * dth * dps + cga * cth * ddps),
+        ], -1)
+        return omega, omega_dot
+
+    def sway_centre(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sway-centre position (m), velocity (m/s), acceleration (m/s^2) in t; (N, 3)."""
+        A = np.asarray(self.linear_amplitude)
+        w = 2 * np.pi / np.asarray(self.linear_period)
+        arg = w * t[:, None] + np.asarray(self.linear_phase)
+        return A * np.sin(arg), A * w * np.cos(arg), -A * w * w * np.sin(arg)
+
+
+def ship_mjcf(lever_arm_b: tuple[float, float, float]) -> str:
+    """MJCF of the hull (body "carrier"), the double-axis gimbal and the IMU site.
+
+    Hull dimensions are visual only; the hull origin is the sway centre.
+    """
+    x, y, z = lever_arm_b
+    return f"""
+<mujoco model="ship-sway-rotary">
+  <option timestep="0.005" integrator="implicitfast"/>
+  <visual><global offwidth="640" offheight="480"/></visual>
+  <asset>
+    <texture name="sea" type="2d" builtin="checker" rgb1=".10 .25 .45" rgb2=".12 .30 .52"
+             width="256" height="256"/>
+    <material name="sea" texture="sea" texrepeat="40 40"/>
+  </asset>
+  <worldbody>
+    <light pos="0 0 200" dir="0 0 -1" directional="true"/>
+    <geom name="sea" type="plane" size="400 400 1" material="sea" contype="0" conaffinity="0"/>
+    <body name="carrier">
+      <freejoint name="hull"/>
+      <geom name="hull" type="box" size="9 45 4" pos="0 0 -2" rgba=".55 .55 .6 1"
+            contype="0" conaffinity="0" mass="5e6"/>
+      <geom name="bridge" type="box" size="7 6 5" pos="{x:g} {y:g} {z / 2:g}" rgba=".85 .85 .9 1"
+            contype="0" conaffinity="0" mass="1e4"/>
+      <body name="gimbal_outer" pos="{x:g} {y:g} {z:g}">
+        <joint name="gimbal_outer" type="hinge" axis="0 0 1"/>
+        <geom type="cylinder" size="0.6 0.05" rgba=".9 .5 .1 1" contype="0" conaffinity="0"
+              mass="20"/>
+        <body name="gimbal_inner">
+          <joint name="gimbal_inner" type="hinge" axis="1 0 0"/>
+          <geom type="box" size="0.25 0.25 0.25" rgba=".2 .8 .3 1" contype="0" conaffinity="0"
+                mass="10"/>
+          <site name="imu" size="0.05"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+{IMU_SENSORS_MJCF}
+</mujoco>
+"""
+
+
+class ShipWorld(PrescribedWorld):
+    """The 003 ship in MuJoCo, hull and gimbal following ShipSwayMotion exactly."""
+
+    gimbal_joints = ("gimbal_outer", "gimbal_inner")
+
+    def __init__(self, motion: ShipSwayMotion) -> None:
+        self.motion = motion
+        super().__init__(ship_mjcf(motion.lever_arm_b))
+
+    def joint_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Free-joint hull (world position, quaternion; world linear and body angular
+        velocity and acceleration) and the two gimbal hinges."""
+        t = np.asarray(t, dtype=float)
+        motion = self.motion
+        n = t.size
+        pos, vel, acc = motion.sway_centre(t)
+        euler, _, _ = motion.euler(t)
+        omega, omega_dot = motion.hull_angular_rate(t)
+        qpos = np.empty((n, 9))
+        qvel = np.empty((n, 8))
+        qacc = np.empty((n, 8))
+        qpos[:, 0:3] = pos
+        qpos[:, 3:7] = euler_to_quat(euler)
+        qpos[:, 7] = motion.gimbal_outer_rate * t
+        qpos[:, 8] = motion.gimbal_inner_rate * t
+        qvel[:, 0:3] = vel
+        qvel[:, 3:6] = omega
+        qvel[:, 6] = motion.gimbal_outer_rate
+        qvel[:, 7] = motion.gimbal_inner_rate
+        qacc[:, 0:3] = acc
+        qacc[:, 3:6] = omega_dot
+        qacc[:, 6:8] = 0.0
+        return qpos, qvel, qacc

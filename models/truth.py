@@ -1,0 +1,66 @@
+"""Navigation truth from MuJoCo kinematics: geodetic position, ENU velocity, attitudes,
+and the exact inertial angular rate and specific force an ideal IMU senses.
+
+Position and velocity are those of the IMU; all attitudes refer to the ENU frame at the
+IMU's position (not the plane's origin: 1 km away the two differ by ~30 arcsec).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from models.attitude import cross, dcm_to_quat, quat_conj, quat_mul, quat_normalize, quat_rotate
+from models.earth import TangentPlane, gravity_n
+from models.world import WorldSamples
+
+
+@dataclass(frozen=True)
+class NavigationTruth:
+    """Truth at times t (N,) s.
+
+    lat, lon (N,) rad; h (N,) m; v_n (N, 3) m/s ENU; q_b_n, q_s_n (N, 4) carrier body and
+    IMU sensor frame to n; gimbal_angles (N, 2) rad (outer, inner);
+    omega_is_s (N, 3) rad/s and f_s (N, 3) m/s^2: instantaneous inertial angular rate and
+    specific force of the IMU in its sensor frame.
+    """
+
+    t: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    v_n: np.ndarray
+    q_b_n: np.ndarray
+    q_s_n: np.ndarray
+    gimbal_angles: np.ndarray
+    omega_is_s: np.ndarray
+    f_s: np.ndarray
+
+    def take(self, index: np.ndarray | slice) -> "NavigationTruth":
+        """Truth at a subset of its samples."""
+        return NavigationTruth(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+
+def navigation_truth(samples: WorldSamples, plane: TangentPlane) -> NavigationTruth:
+    """Truth from plane-frame kinematics.
+
+    The plane is earth-fixed, so omega_is = omega_ts + omega_ie and
+    f = a_t + 2 omega_ie x v_t - g(position), with g the WGS-84 normal gravity (which
+    includes the centrifugal term) along -U at the IMU.
+    """
+    lat, lon, h = plane.to_geodetic(samples.r_t)
+    C_t_n = plane.C_t_n(lat, lon)
+    q_t_n = dcm_to_quat(C_t_n)
+    v_n = np.einsum("...ij,...j->...i", C_t_n, samples.v_t)
+    q_t_s = quat_conj(samples.q_s_t)
+    omega_ie_t = plane.omega_ie_t
+    omega_is_s = samples.omega_ts_s + quat_rotate(q_t_s, np.broadcast_to(omega_ie_t,
+                                                                         samples.v_t.shape))
+    g_t = np.einsum("...ji,...j->...i", C_t_n, gravity_n(lat, h))
+    f_t = samples.a_t + 2.0 * cross(omega_ie_t, samples.v_t) - g_t
+    return NavigationTruth(
+        t=samples.t, lat=lat, lon=lon, h=h, v_n=v_n,
+        q_b_n=quat_normalize(quat_mul(q_t_n, samples.q_b_t)),
+        q_s_n=quat_normalize(quat_mul(q_t_n, samples.q_s_t)),
+        gimbal_angles=samples.gimbal_angles,
+        omega_is_s=omega_is_s, f_s=quat_rotate(q_t_s, f_t))

@@ -1,0 +1,178 @@
+"""Scenario files (TOML, units in the key names) loaded into typed, validated configs."""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from models.ship import ShipSwayMotion
+from models.units import arcsec, deg
+from sensors.encoder import GimbalEncoderSpec
+from sensors.imu import IMU_PRESETS, ImuSpec
+
+DATA_DIR = Path(__file__).parent / "data"
+
+# Key suffix -> factor to SI, longest suffix first.
+_UNIT_SUFFIXES = (("_deg_s", deg), ("_arcsec", arcsec), ("_deg", deg), ("_hz", 1.0),
+                  ("_m", 1.0), ("_s", 1.0))
+
+
+class ConfigError(ValueError):
+    """An invalid scenario or option; the message names the field and the allowed range."""
+
+
+def scenario_names() -> list[str]:
+    """Names of the scenario files shipped with the package."""
+    return sorted(p.stem for p in DATA_DIR.glob("*.toml"))
+
+
+def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
+    """Strip unit suffixes from keys and convert their values to SI."""
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        for suffix, factor in _UNIT_SUFFIXES:
+            if key.endswith(suffix):
+                name = key[: -len(suffix)]
+                try:
+                    value = (tuple(float(v) * factor for v in value) if isinstance(value, list)
+                             else float(value) * factor)
+                except (TypeError, ValueError):
+                    raise ConfigError(f"{section}.{key}: expected a number or a list of numbers,"
+                                      f" got {value!r}") from None
+                break
+        else:
+            name = key
+        out[name] = value
+    return out
+
+
+def _check_range(field: str, value: float, low: float, high: float, unit: str,
+                 low_open: bool = False) -> None:
+    ok = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
+    if not ok:
+        bracket = "(" if low_open else "["
+        raise ConfigError(f"{field} = {value:g} {unit} is out of range {bracket}{low:g}, {high:g}]")
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """A scenario in SI: origin lat/lon (rad) and height (m), duration (s), IMU rate (Hz),
+    IMU datasheet, encoder spec and the world's motion parameters."""
+
+    name: str
+    paper: str
+    world: str
+    latitude: float
+    longitude: float
+    height: float
+    duration: float
+    imu_rate: float
+    imu_preset: str
+    imu: ImuSpec
+    encoder: GimbalEncoderSpec
+    motion: ShipSwayMotion
+    random_linear_phase: bool
+
+    def with_options(self, duration: float | None = None, imu_rate: float | None = None
+                     ) -> "ScenarioConfig":
+        """Copy with command-line overrides, validated."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        if duration is not None:
+            values["duration"] = float(duration)
+        if imu_rate is not None:
+            values["imu_rate"] = float(imu_rate)
+        config = ScenarioConfig(**values)
+        config.validate()
+        return config
+
+    @property
+    def imu_interval(self) -> float:
+        """IMU sample interval, s."""
+        return 1.0 / self.imu_rate
+
+    @property
+    def imu_samples(self) -> int:
+        """Number of IMU intervals in the run."""
+        return int(round(self.duration * self.imu_rate))
+
+    def validate(self) -> None:
+        _check_range("origin.latitude", self.latitude / deg, -89.0, 89.0, "deg")
+        _check_range("origin.longitude", self.longitude / deg, -180.0, 360.0, "deg")
+        _check_range("origin.height", self.height, -500.0, 10000.0, "m")
+        _check_range("run.duration", self.duration, 0.0, 86400.0, "s", low_open=True)
+        _check_range("run.imu_rate", self.imu_rate, 0.0, 2000.0, "Hz", low_open=True)
+        if abs(self.duration * self.imu_rate - self.imu_samples) > 1e-6 or self.imu_samples < 2:
+            raise ConfigError(f"run.duration = {self.duration:g} s must be a whole number (>= 2)"
+                              f" of IMU intervals of {self.imu_interval:g} s")
+        m = self.motion
+        for name in ("yaw_period", "pitch_period", "roll_period"):
+            _check_range(f"motion.{name}", getattr(m, name), 0.0, 1e4, "s", low_open=True)
+        for name in ("yaw_amplitude", "pitch_amplitude", "roll_amplitude"):
+            _check_range(f"motion.{name}", getattr(m, name) / deg, 0.0, 45.0, "deg")
+        for i, (a, p) in enumerate(zip(m.linear_amplitude, m.linear_period)):
+            _check_range(f"motion.linear_amplitude[{i}]", a, 0.0, 50.0, "m")
+            _check_range(f"motion.linear_period[{i}]", p, 0.0, 1e4, "s", low_open=True)
+        for name in ("gimbal_outer_rate", "gimbal_inner_rate"):
+            _check_range(f"motion.{name}", getattr(m, name) / deg, -360.0, 360.0, "deg/s")
+
+
+def load_scenario(name_or_path: str) -> ScenarioConfig:
+    """Load a shipped scenario by name, or a TOML file by path."""
+    path = Path(name_or_path)
+    if not (path.suffix == ".toml" and path.is_file()):
+        if name_or_path not in scenario_names():
+            raise ConfigError(f"unknown scenario {name_or_path!r}; valid choices: "
+                              + ", ".join(scenario_names()))
+        path = DATA_DIR / f"{name_or_path}.toml"
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+    return _build(raw, str(path))
+
+
+def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
+    def section(name: str) -> dict[str, Any]:
+        if name not in raw or not isinstance(raw[name], dict):
+            raise ConfigError(f"{source}: missing table [{name}]")
+        return _to_si(raw[name], name)
+
+    origin, run, imu, encoder, motion = (section(s) for s in
+                                         ("origin", "run", "imu", "encoder", "motion"))
+    preset = imu.get("preset")
+    if preset not in IMU_PRESETS:
+        raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
+                          + ", ".join(sorted(IMU_PRESETS)))
+    phase = motion.pop("linear_phase", "random")
+    random_phase = phase == "random"
+    if not random_phase:
+        if not (isinstance(phase, tuple) and len(phase) == 3):
+            raise ConfigError("motion.linear_phase must be \"random\" or linear_phase_deg = "
+                              "[3 values]")
+        motion["linear_phase"] = phase
+    known = {f.name for f in fields(ShipSwayMotion)}
+    unknown = sorted(set(motion) - known)
+    if unknown:
+        raise ConfigError(f"motion.{unknown[0]} is not a motion parameter; valid: "
+                          + ", ".join(sorted(known)))
+    for key in ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b"):
+        if key in motion and len(motion[key]) != 3:
+            raise ConfigError(f"motion.{key} must have 3 values (E, N, U or R, F, U)")
+    try:
+        encoder_spec = GimbalEncoderSpec(**encoder)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"encoder: {exc}") from None
+    try:
+        config = ScenarioConfig(
+            name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
+            world=str(raw.get("world", "")),
+            latitude=origin["latitude"], longitude=origin["longitude"], height=origin["height"],
+            duration=run["duration"], imu_rate=run["imu_rate"], imu_preset=preset,
+            imu=IMU_PRESETS[preset], encoder=encoder_spec, motion=ShipSwayMotion(**motion),
+            random_linear_phase=random_phase)
+    except KeyError as exc:
+        raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
+    config.validate()
+    return config

@@ -1,0 +1,1 @@
+"""Sensor plugins: IMU (gyro + accelerometer), gimbal encoders; later odometer and GPS."""
