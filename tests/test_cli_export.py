@@ -1,0 +1,107 @@
+"""The aligngym command line: data export format, reproducibility, and bad input."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from scenarios.cli import main
+
+REQUIRED = {"t": 1, "lat": 1, "lon": 1, "h": 1, "v_n": 2, "q_b_n": 2, "q_s_n": 2,
+            "gimbal_angles": 2, "imu_t": 1, "dtheta": 2, "dv": 2}
+
+
+def run_cli(*args):
+    """Run the installed entry point as a user would; returns (code, stdout, stderr)."""
+    proc = subprocess.run([sys.executable, "-m", "scenarios.cli", *args], capture_output=True,
+                          text=True)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sim")
+    paths = {}
+    for name, extra in {"a": [], "b": [], "ideal": ["--ideal"], "other": ["--seed", "8"]}.items():
+        seed = [] if extra[:1] == ["--seed"] else ["--seed", "7"]
+        out = d / f"{name}.npz"
+        assert main(["simulate", "ship-sway-rotary", "--duration", "20", *seed, *extra,
+                     "--out", str(out)]) == 0
+        paths[name] = out
+    return {k: dict(np.load(v)) for k, v in paths.items()}
+
+
+def test_export_arrays_and_units(files):
+    f = files["a"]
+    for key, ndim in REQUIRED.items():
+        assert f[key].ndim == ndim, key
+    N, M = f["t"].size, f["imu_t"].size
+    assert (N, M) == (2001, 2000)
+    assert f["v_n"].shape == (N, 3) and f["q_s_n"].shape == (N, 4)
+    assert f["dtheta"].shape == (M, 3) and f["gimbal_angles"].shape == (N, 2)
+    # Every IMU interval ends at a truth time and the first starts at one.
+    np.testing.assert_array_equal(f["imu_t"], f["t"][1:])
+    assert f["t"][0] == 0.0
+    np.testing.assert_allclose(np.linalg.norm(f["q_b_n"], axis=1), 1.0, atol=1e-14)
+    assert np.rad2deg(f["lat"]).mean() == pytest.approx(40.0, abs=1e-3)
+    assert np.rad2deg(f["lon"]).mean() == pytest.approx(118.0, abs=1e-3)
+    # dv is in m/s in the sensor frame: rotated to n and summed it is the velocity change
+    # plus g t (gravity opposes the specific force).
+    from models.attitude import quat_rotate
+    sum_dv_n = quat_rotate(f["q_s_n"][:-1], f["dv"]).sum(0) - (f["v_n"][-1] - f["v_n"][0])
+    np.testing.assert_allclose(sum_dv_n, [0.0, 0.0, 9.8016 * 20], atol=0.02 * 9.8 * 20)
+
+
+def test_same_seed_same_file_and_ideal_shares_truth(files):
+    for key in files["a"]:
+        np.testing.assert_array_equal(files["a"][key], files["b"][key])
+    truth_keys = ["t", "lat", "lon", "h", "v_n", "q_b_n", "q_s_n", "gimbal_angles"]
+    for key in truth_keys:
+        np.testing.assert_array_equal(files["a"][key], files["ideal"][key])
+    assert not np.array_equal(files["a"]["dtheta"], files["ideal"]["dtheta"])
+    assert "gyro_bias" in files["a"] and "gyro_bias" not in files["ideal"]
+    # Another seed draws other sway phases: another truth.
+    assert not np.array_equal(files["a"]["h"], files["other"]["h"])
+
+
+def test_errors_on_the_file_match_the_drawn_biases(files):
+    err = (files["a"]["dtheta"] - files["ideal"]["dtheta"]) / 0.01
+    np.testing.assert_allclose(err.mean(0), files["a"]["gyro_bias"], atol=3e-9)
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["simulate", "no-such-scenario", "--out", "x.npz"], "valid choices: ship-sway-rotary"),
+    (["simulate", "ship-sway-rotary", "--duration", "-5", "--out", "x.npz"], "--duration"),
+    (["simulate", "ship-sway-rotary", "--imu-rate", "0", "--out", "x.npz"], "--imu-rate"),
+    (["simulate", "ship-sway-rotary", "--imu-rate", "5000", "--out", "x.npz"],
+     "run.imu_rate = 5000 Hz is out of range"),
+    (["simulate", "ship-sway-rotary", "--duration", "0.015", "--out", "x.npz"], "run.duration"),
+    (["simulate", "ship-sway-rotary", "--seed", "-1", "--out", "x.npz"], "--seed"),
+    (["simulate", "ship-sway-rotary", "--duration", "1", "--out", "x.csv"], ".npz"),
+    (["simulate", "ship-sway-rotary"], "--out"),
+    (["bogus"], "invalid choice"),
+])
+def test_bad_input_one_line_error(args, expected):
+    code, out, err = run_cli(*args)
+    assert code != 0
+    assert expected in err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1, err
+
+
+def test_bad_scenario_file_names_field(tmp_path):
+    from scenarios.config import DATA_DIR
+    text = (DATA_DIR / "ship-sway-rotary.toml").read_text().replace(
+        "latitude_deg = 40.0", "latitude_deg = 95.0")
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    code, _, err = run_cli("simulate", str(path), "--out", str(tmp_path / "x.npz"))
+    assert code == 2 and "origin.latitude = 95 deg is out of range [-89, 89]" in err
+
+
+def test_imu_rate_option_changes_sample_count(tmp_path):
+    out = tmp_path / "r.npz"
+    assert main(["simulate", "ship-sway-rotary", "--duration", "2", "--imu-rate", "200",
+                 "--out", str(out)]) == 0
+    f = np.load(out)
+    assert f["imu_t"].size == 400 and f["t"].size == 401
