@@ -20,7 +20,7 @@ __all__ = [
     "cross", "skew", "quat_mul", "quat_conj", "quat_normalize", "quat_rotate",
     "quat_to_dcm", "dcm_to_quat", "rotvec_to_quat", "quat_to_rotvec",
     "rotvec_to_dcm", "dcm_to_rotvec", "euler_to_dcm", "dcm_to_euler",
-    "euler_to_quat", "quat_to_euler", "rot_x", "rot_y", "rot_z", "quat_angle",
+    "euler_to_quat", "quat_to_euler", "rot_x", "rot_y", "rot_z", "quat_angle", "quat_cumprod",
 ]
 
 
@@ -203,3 +203,18 @@ def quat_angle(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     d = quat_mul(quat_conj(q_a), q_b)
     s = np.linalg.norm(d[..., 1:], axis=-1)
     return 2.0 * np.arctan2(s, np.abs(d[..., 0]))
+
+
+def quat_cumprod(q: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Running products q_0, q_0 q_1, q_0 q_1 q_2, ... along an axis of (..., 4).
+
+    A Hillis-Steele scan: log2(n) vectorized passes instead of n sequential products.
+    """
+    out = np.moveaxis(np.array(q, dtype=float), axis, 0)
+    n = out.shape[0]
+    step = 1
+    while step < n:
+        out[step:] = quat_mul(out[:-step], out[step:])
+        out[step:] /= np.sqrt(np.sum(out[step:] ** 2, axis=-1, keepdims=True))
+        step *= 2
+    return np.moveaxis(out, 0, axis)

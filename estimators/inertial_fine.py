@@ -1,0 +1,200 @@
+"""Fine alignment in the inertial frame: the 12-state model of paper 003 (eqs. 26-35,
+ALGORITHMS.md 2.1) with the velocity-integral measurement, run for a batch of episodes.
+
+State X = [dV^i (3), phi^i (3), eps (3), nabla (3)]: velocity-integral error and
+misalignment in i, gyro drift and accelerometer bias in the sensor frame s.
+
+Each filter keeps its own estimate of C_s0^i (the attitude of the frozen sensor frame in
+i); the misalignment is fed back into it after every update (C_s0^i <- exp([phi x])
+C_s0^i, phi <- 0), so the small-angle model stays valid while the gyro-derived C_s^s0 and
+the specific-force integrals stay shared by all filters. Biases stay in the state.
+
+The transition over one filter step of length T is integrated with the IMU-rate
+integrals Psi = int C_s^i dt and Psi2 = int int C_s^i, exact for the 18 deg/s rotation:
+dV_k = dV - [g x] T phi + [g x] Psi2 eps + Psi nabla, phi_k = phi - Psi eps.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.filters import GaussianFilter
+from estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
+                                       gravity_velocity_i)
+from models.attitude import dcm_to_rotvec, rotvec_to_dcm, skew
+
+V, PHI, EPS, NABLA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
+N_STATES = 12
+
+
+@dataclass(frozen=True)
+class FineTuning:
+    """Filter tuning, SI. Sigmas of the initial covariance: velocity integral (m/s),
+    misalignment E, N, U in n (rad), gyro drift (rad/s), accelerometer bias (m/s^2).
+    White-noise densities (rad/sqrt(s), m/s/sqrt(s)). Measurement sigmas along E, N, U
+    (m/s). step: filter period, s (a whole number of IMU intervals)."""
+
+    velocity_sigma: float
+    attitude_sigma: tuple[float, float, float]
+    gyro_bias_sigma: float
+    accel_bias_sigma: float
+    gyro_noise_density: float
+    accel_noise_density: float
+    measurement_sigma: tuple[float, float, float]
+    step: float = 1.0
+
+    def initial_covariance(self, C_n_i0: np.ndarray) -> np.ndarray:
+        """P0 (B, 12, 12); the attitude block rotated from n to i at the start."""
+        batch = C_n_i0.shape[0]
+        P = np.zeros((batch, N_STATES, N_STATES))
+        P[:, V, V] = np.eye(3) * self.velocity_sigma ** 2
+        P[:, PHI, PHI] = C_n_i0 @ np.diag(np.square(self.attitude_sigma)) @ np.swapaxes(
+            C_n_i0, -1, -2)
+        P[:, EPS, EPS] = np.eye(3) * self.gyro_bias_sigma ** 2
+        P[:, NABLA, NABLA] = np.eye(3) * self.accel_bias_sigma ** 2
+        return P
+
+
+@dataclass(frozen=True)
+class FineInputs:
+    """A batch of episodes' shared integrals at the filter-step boundaries.
+
+    t: (K+1,) s since t0. C_s_s0: (B, K+1, 3, 3). dW: (B, K, 3) m/s, specific-force
+    integral minus lever-arm velocity change over each step, in s0. Psi, Psi2:
+    (B, K, 3, 3) in s0 (s and s^2).
+    """
+
+    t: np.ndarray
+    C_s_s0: np.ndarray
+    dW: np.ndarray
+    Psi: np.ndarray
+    Psi2: np.ndarray
+
+
+def fine_inputs(integrals: list[BodyFrameIntegrals], t1: float, duration: float,
+                step: float) -> FineInputs:
+    """Cut the episodes' integrals into filter steps from t1 (s) for duration (s)."""
+    dt = integrals[0].t[1] - integrals[0].t[0]
+    per_step = int(round(step / dt))
+    k1 = int(round(t1 / dt))
+    K = int(round(duration / step))
+    if per_step < 1 or abs(per_step * dt - step) > 1e-9:
+        raise ValueError(f"filter step {step} s must be a whole number of IMU intervals")
+    idx = k1 + per_step * np.arange(K + 1)
+    if idx[-1] >= integrals[0].t.size:
+        raise ValueError(f"the data end at {integrals[0].t[-1]:g} s, before t1 + duration = "
+                         f"{t1 + duration:g} s")
+    C = np.stack([g.C_s_s0[idx] for g in integrals])
+    W = np.stack([g.V_f[idx] - g.V_la[idx] for g in integrals])
+    Psi_cum = np.stack([g.Psi_cum[idx] for g in integrals])
+    # Psi2 over [t_a, t_b] = int C (t_b - tau) = t_b Psi - int C tau; int C tau from
+    # the running sums at IMU rate.
+    t = integrals[0].t
+    tau_mid = 0.5 * (t[:-1] + t[1:])
+    CT = []
+    for g in integrals:
+        inc = 0.5 * dt * (g.C_s_s0[:-1] + g.C_s_s0[1:]) * tau_mid[:, None, None]
+        cum = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(inc, axis=0)])
+        CT.append(cum[idx])
+    CT = np.stack(CT)
+    Psi = np.diff(Psi_cum, axis=1)
+    t_end = t[idx[1:]]
+    Psi2 = t_end[None, :, None, None] * Psi - np.diff(CT, axis=1)
+    return FineInputs(t=t[idx], C_s_s0=C, dW=np.diff(W, axis=1), Psi=Psi, Psi2=Psi2)
+
+
+@dataclass
+class FineResult:
+    """Time series of a fine-alignment run for B episodes at the K+1 step boundaries.
+
+    t (K+1,) s since t0; C_s_n (B, K+1, 3, 3) estimated attitude; P (B, K+1, 12, 12) in
+    the state's frames; sigma_n (B, K+1, 3) rad, 1-sigma misalignment along E, N, U;
+    x (B, K+1, 12) estimate before feedback; factors (B, K, k); diverged (B,), time (B,),
+    reason; seconds_per_epoch: wall time per filter epoch for the whole batch.
+    """
+
+    t: np.ndarray
+    C_s_n: np.ndarray
+    P: np.ndarray
+    sigma_n: np.ndarray
+    x: np.ndarray
+    factors: np.ndarray
+    diverged: np.ndarray
+    diverged_time: np.ndarray
+    diverged_reason: list[str]
+    seconds_per_epoch: float
+
+
+def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
+                       tuning: FineTuning, lat: float, h: float) -> FineResult:
+    """Run one filter on a batch from the initial attitude estimate C_s^i(t1) (B, 3, 3)."""
+    t = inputs.t
+    B, K = inputs.dW.shape[:2]
+    T = tuning.step
+    # C_s0^i estimate per episode: C_s^i(t1) C_s0^s(t1).
+    C_s0_i = C_s_i_start @ np.swapaxes(inputs.C_s_s0[:, 0], -1, -2)
+    Cni = C_n_i(t, lat)
+    g_mid = gravity_i(0.5 * (t[:-1] + t[1:]), lat, h)
+    V_grav = gravity_velocity_i(t, lat, h)
+    q_g = tuning.gyro_noise_density ** 2
+    q_a = tuning.accel_noise_density ** 2
+    R_n = np.diag(np.square(tuning.measurement_sigma))
+    H = np.broadcast_to(np.hstack([np.eye(3), np.zeros((3, 9))]), (B, 3, N_STATES))
+
+    filt.reset(np.zeros((B, N_STATES)), tuning.initial_covariance(
+        np.broadcast_to(Cni[0], (B, 3, 3))), m=3)
+    Z_acc = np.zeros((B, 3))
+    C_s_n = np.empty((B, K + 1, 3, 3))
+    P_hist = np.empty((B, K + 1, N_STATES, N_STATES))
+    x_hist = np.zeros((B, K + 1, N_STATES))
+    factors = np.zeros((B, K, filt.adaptation.n_factors))
+    C_i_n = np.swapaxes(Cni, -1, -2)
+
+    def record(k: int) -> None:
+        C_s_n[:, k] = C_i_n[k] @ C_s0_i @ inputs.C_s_s0[:, k]
+        P_hist[:, k] = filt.P
+
+    record(0)
+    start = time.perf_counter()
+    for k in range(K):
+        Psi_i = C_s0_i @ inputs.Psi[:, k]
+        Psi2_i = C_s0_i @ inputs.Psi2[:, k]
+        G = skew(g_mid[k])
+        Phi = np.broadcast_to(np.eye(N_STATES), (B, N_STATES, N_STATES)).copy()
+        Phi[:, V, PHI] = -G * T
+        Phi[:, V, EPS] = G @ Psi2_i
+        Phi[:, V, NABLA] = Psi_i
+        Phi[:, PHI, EPS] = -Psi_i
+        Q = np.zeros((B, N_STATES, N_STATES))
+        Q[:, V, V] = q_a * T * np.eye(3) + q_g * T ** 3 / 3.0 * G @ G.T
+        Q[:, V, PHI] = -q_g * T ** 2 / 2.0 * G
+        Q[:, PHI, V] = Q[:, V, PHI].swapaxes(-1, -2)
+        Q[:, PHI, PHI] = q_g * T * np.eye(3)
+        filt.predict(Phi, Q)
+
+        Z_acc += np.einsum("bij,bj->bi", C_s0_i, inputs.dW[:, k])
+        z = Z_acc - (V_grav[k + 1] - V_grav[0])
+        R = np.broadcast_to(Cni[k + 1] @ R_n @ C_i_n[k + 1], (B, 3, 3))
+        filt.update(z, H, R, float(t[k + 1]))
+        factors[:, k] = filt.factors
+        x_hist[:, k + 1] = filt.x
+        # Feedback of the misalignment into this filter's C_s0^i.
+        live = ~filt.health.diverged
+        correction = rotvec_to_dcm(np.where(live[:, None], filt.x[:, PHI], 0.0))
+        C_s0_i = correction @ C_s0_i
+        filt.x[:, PHI] = np.where(live[:, None], 0.0, filt.x[:, PHI])
+        record(k + 1)
+    elapsed = time.perf_counter() - start
+
+    P_phi_n = C_i_n[None] @ P_hist[:, :, PHI, PHI] @ Cni[None]
+    sigma_n = np.sqrt(np.maximum(np.diagonal(P_phi_n, axis1=-2, axis2=-1), 0.0))
+    return FineResult(t=t, C_s_n=C_s_n, P=P_hist, sigma_n=sigma_n, x=x_hist, factors=factors,
+                      diverged=filt.health.diverged.copy(), diverged_time=filt.health.time.copy(),
+                      diverged_reason=list(filt.health.reason), seconds_per_epoch=elapsed / K)
+
+
+def misalignment_n(C_s_n_true: np.ndarray, C_s_n_est: np.ndarray) -> np.ndarray:
+    """Misalignment phi^n (..., 3) rad (E, N, U) with C_true = exp([phi x]) C_est."""
+    return dcm_to_rotvec(C_s_n_true @ np.swapaxes(C_s_n_est, -1, -2))

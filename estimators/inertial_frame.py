@@ -1,0 +1,187 @@
+"""Inertial-frame alignment of a swaying, rotating IMU (paper 003; ALGORITHMS.md 1.1, 2.1).
+
+Frames: s = IMU sensor frame, s0 = s frozen at t0 (the paper's i_b0), b = hull body
+(RFU), n = ENU at the known position, i = inertial frame equal to the earth frame at t0
+with its x axis in the local meridian (003 eqs. 11-12).
+
+The work is split so that everything that does not depend on a filter is computed once
+per episode and shared by all filters (``body_frame_integrals``): the attitude of s
+relative to s0, the integral of the specific force in s0 and the lever-arm velocity.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.strapdown import compensate
+from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
+                             rotvec_to_quat)
+from models.earth import OMEGA_IE, normal_gravity
+
+
+# --- earth rotation in the inertial frame ------------------------------------------------
+
+def C_n_i(t: np.ndarray, lat: float) -> np.ndarray:
+    """C_n^i(t) = (C_e^n C_i^e(t))^T for time since t0 (..., ) s -> (..., 3, 3) (003 eq. 11-12)."""
+    t = np.asarray(t, dtype=float)
+    sL, cL = np.sin(lat), np.cos(lat)
+    C_e_n = np.array([[0.0, 1.0, 0.0], [-sL, 0.0, cL], [cL, 0.0, sL]])
+    c, s = np.cos(OMEGA_IE * t), np.sin(OMEGA_IE * t)
+    z, o = np.zeros_like(c), np.ones_like(c)
+    C_i_e = np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1),
+                      np.stack([z, z, o], -1)], -2)
+    return np.swapaxes(C_e_n @ C_i_e, -1, -2)
+
+
+def gravity_velocity_i(t: np.ndarray, lat: float, h: float) -> np.ndarray:
+    """V^i(t) = integral from t0 of -g^i: the specific-force velocity a still IMU senses in
+    i (003 eq. 20), (..., 3) m/s for time since t0 (...) s."""
+    t = np.asarray(t, dtype=float)
+    g = normal_gravity(lat, h)
+    w = OMEGA_IE
+    return np.stack([g * np.cos(lat) / w * np.sin(w * t),
+                     g * np.cos(lat) / w * (1.0 - np.cos(w * t)),
+                     g * np.sin(lat) * t], -1)
+
+
+def gravity_i(t: np.ndarray, lat: float, h: float) -> np.ndarray:
+    """g^i(t) = C_n^i(t) [0, 0, -g], (..., 3) m/s^2."""
+    return -normal_gravity(lat, h) * C_n_i(t, lat)[..., :, 2]
+
+
+# --- shared per-episode integrals --------------------------------------------------------
+
+@dataclass(frozen=True)
+class BodyFrameIntegrals:
+    """One episode's filter-independent integrals at the IMU interval boundaries.
+
+    t: (M+1,) s since t0. C_s_s0: (M+1, 3, 3) attitude of s relative to s0 (from the gyros).
+    V_f: (M+1, 3) m/s, integral of C_s^s0 f~ (003 eq. 17). V_la: (M+1, 3) m/s, lever-arm
+    velocity C_s^s0 (omega_ib^s x r^s) (ALGORITHMS 1.5, first term). Psi_cum: (M+1, 3, 3) s,
+    running integral of C_s^s0 (trapezoid).
+    """
+
+    t: np.ndarray
+    C_s_s0: np.ndarray
+    V_f: np.ndarray
+    V_la: np.ndarray
+    Psi_cum: np.ndarray
+
+
+def gimbal_rate_s(gimbal_angles: np.ndarray, dt: float, span: int = 10) -> np.ndarray:
+    """omega_bs^s (N, 3) rad/s, the gimbal's rate from encoder angles (N, 2) rad (outer
+    about b z, inner about x; C_s^b = Rz(outer) Rx(inner)). Rates are central differences
+    over +-span samples, which averages encoder quantization down."""
+    angles = np.asarray(gimbal_angles, dtype=float)
+    n = angles.shape[0]
+    span = max(1, min(span, (n - 1) // 2))
+    rates = np.empty_like(angles)
+    rates[span:-span] = (angles[2 * span:] - angles[:-2 * span]) / (2 * span * dt)
+    rates[:span] = (angles[span] - angles[0]) / (span * dt)
+    rates[-span:] = (angles[-1] - angles[-1 - span]) / (span * dt)
+    outer_rate, inner_rate = rates[:, 0], rates[:, 1]
+    # omega_bs^s = Rx(inner)^T [0, 0, outer_rate] + [inner_rate, 0, 0]
+    inner = angles[:, 1]
+    return np.stack([inner_rate, np.sin(inner) * outer_rate, np.cos(inner) * outer_rate], -1)
+
+
+def body_frame_integrals(dtheta: np.ndarray, dv: np.ndarray, gimbal_angles: np.ndarray | None,
+                         lever_arm_b: np.ndarray, dt: float) -> BodyFrameIntegrals:
+    """Integrals of one episode from IMU increments (M, 3) and encoder angles (M+1, 2).
+
+    gimbal_angles None means a strapdown IMU fixed to the hull (C_s^b = I).
+    lever_arm_b: (3,) m, IMU position from the sway centre in the hull frame.
+    """
+    dtheta = np.asarray(dtheta, dtype=float)
+    dv = np.asarray(dv, dtype=float)
+    M = dtheta.shape[0]
+    if not (np.all(np.isfinite(dtheta)) and np.all(np.isfinite(dv))):
+        raise ValueError("IMU increments contain NaN or inf")
+    phi, dv_b = compensate(dtheta[None], dv[None])
+    steps = rotvec_to_quat(phi[0])
+    q = np.empty((M + 1, 4))
+    q[0] = [1.0, 0.0, 0.0, 0.0]
+    q[1:] = quat_cumprod(steps)
+    dV = quat_rotate(q[:-1], dv_b[0])
+    V_f = np.concatenate([np.zeros((1, 3)), np.cumsum(dV, axis=0)])
+    C = quat_to_dcm(q)
+    Psi_cum = np.concatenate([np.zeros((1, 3, 3)),
+                              np.cumsum(0.5 * dt * (C[:-1] + C[1:]), axis=0)])
+    # Inertial rate at the boundaries: mean of the two adjacent intervals inside, linear
+    # extrapolation at the ends (both O(T^2); a one-sided dtheta/T would be O(T) off,
+    # ~5 cm/s of lever-arm velocity here).
+    rate = np.empty((M + 1, 3))
+    rate[1:-1] = (dtheta[:-1] + dtheta[1:]) / (2.0 * dt)
+    rate[0] = (3.0 * dtheta[0] - dtheta[1]) / (2.0 * dt)
+    rate[-1] = (3.0 * dtheta[-1] - dtheta[-2]) / (2.0 * dt)
+    lever = np.asarray(lever_arm_b, dtype=float)
+    if gimbal_angles is None:
+        omega_ib_s, r_s = rate, np.broadcast_to(lever, rate.shape)
+    else:
+        angles = np.asarray(gimbal_angles, dtype=float)
+        omega_ib_s = rate - gimbal_rate_s(angles, dt)
+        C_s_b = rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
+        r_s = np.einsum("nji,j->ni", C_s_b, lever)
+    V_la = np.einsum("nij,nj->ni", C, cross(omega_ib_s, r_s))
+    return BodyFrameIntegrals(t=np.arange(M + 1) * dt, C_s_s0=C, V_f=V_f, V_la=V_la,
+                              Psi_cum=Psi_cum)
+
+
+# --- coarse alignment (003 eqs. 10-22) ---------------------------------------------------
+
+def nearest_rotation(C: np.ndarray) -> np.ndarray:
+    """Closest proper rotation (Frobenius norm) to (..., 3, 3)."""
+    U, _, Vt = np.linalg.svd(C)
+    U[..., :, -1] *= np.sign(np.linalg.det(U @ Vt))[..., None]
+    return U @ Vt
+
+
+def triad(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Orthonormal triad (3, 3) with columns u1/|u1|, (u1 x u2)/|.|, and their cross."""
+    a1 = u1 / np.linalg.norm(u1)
+    a2 = np.cross(u1, u2)
+    a2 = a2 / np.linalg.norm(a2)
+    return np.stack([a1, a2, np.cross(a1, a2)], -1)
+
+
+def coarse_alignment_ib0(integrals: BodyFrameIntegrals, lat: float, h: float,
+                         t_k1: float, t_k2: float) -> np.ndarray:
+    """Inertial-frame (i_b0) coarse alignment with lever-arm compensation.
+
+    Returns C_s0^i (3, 3) from the velocity vectors at t_k1 < t_k2 (s) in both frames
+    (003 eq. 22), in its orthonormal (TRIAD) form: the two vectors are nearly parallel
+    (~2e-3 rad apart), so eq. 22's inverse amplifies any error in their cross product into
+    every axis; the triad keeps it to the rotation about V(t_k1).
+    V^ib0(t) = V_f(t) - [V_la(t) - V_la(t0)] (ALGORITHMS 1.5-1.6).
+    """
+    if not 0.0 < t_k1 < t_k2 <= integrals.t[-1] + 1e-9:
+        raise ValueError(f"need 0 < t_k1 < t_k2 <= {integrals.t[-1]:g} s, got {t_k1}, {t_k2}")
+    dt = integrals.t[1] - integrals.t[0]
+    k1, k2 = int(round(t_k1 / dt)), int(round(t_k2 / dt))
+    V_b = [integrals.V_f[k] - (integrals.V_la[k] - integrals.V_la[0]) for k in (k1, k2)]
+    V_i = [gravity_velocity_i(integrals.t[k], lat, h) for k in (k1, k2)]
+    return triad(*V_i) @ triad(*V_b).T
+
+
+def attitude_from_inertial(C_s0_i: np.ndarray, integrals: BodyFrameIntegrals, index,
+                           lat: float) -> np.ndarray:
+    """C_s^n (..., 3, 3) at IMU boundary index (003 eq. 10): C_i^n(t) C_s0^i C_s^s0(t)."""
+    t = integrals.t[index]
+    return np.swapaxes(C_n_i(t, lat), -1, -2) @ C_s0_i @ integrals.C_s_s0[index]
+
+
+def static_coarse_alignment(f_b: np.ndarray, omega_ib_b: np.ndarray, lat: float
+                            ) -> np.ndarray:
+    """Analytic coarse alignment on a static base: C_b^n (3, 3) from the mean specific force
+    f_b (3,) m/s^2 and mean inertial rate omega_ib_b (3,) rad/s, by the double-vector
+    construction on (f, omega, f x omega), re-orthonormalised."""
+    f_n = np.array([0.0, 0.0, 1.0])  # direction of the specific force at rest (up)
+    w_n = np.array([0.0, np.cos(lat), np.sin(lat)])
+    f_b = np.asarray(f_b, dtype=float)
+    w_b = np.asarray(omega_ib_b, dtype=float)
+    f_b = f_b / np.linalg.norm(f_b)
+    w_b = w_b / np.linalg.norm(w_b)
+    N = np.stack([f_n, w_n, np.cross(f_n, w_n)])
+    Bm = np.stack([f_b, w_b, np.cross(f_b, w_b)])
+    return nearest_rotation(np.linalg.solve(Bm, N).T)
