@@ -36,6 +36,9 @@ class AdaptationPolicy(ABC):
 
     n_factors: int = 0
     name: str = "none"
+    basis: np.ndarray | None = None
+    """Optional (B, m, m) rotation of the measurement axes in which per-axis factors are
+    formed (set by the model each epoch); None: the measurement's own axes (the papers)."""
 
     def reset(self, batch: int, m: int) -> None:
         """Start a new batch of episodes with m measurements."""
@@ -111,55 +114,59 @@ class SingleFadingFactor(InnovationFading):
         return lam[:, :, None] * PhiPPhi + Q, lam
 
 
-class MultipleFadingFactors(InnovationFading):
+class _PerAxisFading(InnovationFading):
+    """Shared part of MAKF and IMAKF: factors per measured state,
+    lambda_i = max(1, sqrt(N_ii / (s_i^2 J_ii))), applied as the congruence
+    L J L with L = diag(lambda_1..m, 1, ..., 1). With a ``basis`` U (orthogonal, H = [I 0])
+    the factors are formed along U's axes and L's measured block is U^T diag(lambda) U."""
+
     n_factors = 0  # set to m at reset
-    """MAKF (003 eq. 37; Geng & Wang 2008): P_pred = L Phi P Phi^T L + Q,
-    L = diag(lambda_i), lambda_i = max(1, sqrt(N'_ii / (s_i^2 (Phi P Phi^T)_ii))) for the
-    m measured states, 1 otherwise; N' = C_k - H Q H^T - R. Needs H = [diag(s) 0]."""
+
+    def _factors(self, N: np.ndarray, J: np.ndarray, H: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Factors (B, m) and the full congruence matrix L (B, n, n)."""
+        s = _diagonal_selection(H)
+        m, n = s.shape[-1], J.shape[-1]
+        J_mm = s[..., :, None] * J[..., :m, :m] * s[..., None, :]
+        U = self.basis
+        if U is not None:
+            if np.any(s != 1.0):
+                raise ValueError("a factor basis needs H = [I 0]")
+            N = U @ N @ np.swapaxes(U, -1, -2)
+            J_mm = U @ J_mm @ np.swapaxes(U, -1, -2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lam = np.sqrt(np.maximum(np.diagonal(N, axis1=-2, axis2=-1), 0.0)
+                          / np.diagonal(J_mm, axis1=-2, axis2=-1))
+        lam = self._bound(lam)
+        L = np.broadcast_to(np.eye(n), J.shape).copy()
+        if U is None:
+            L[..., np.arange(m), np.arange(m)] = lam
+        else:
+            L[..., :m, :m] = np.swapaxes(U, -1, -2) @ (lam[..., :, None] * U)
+        return lam, L
+
+
+class MultipleFadingFactors(_PerAxisFading):
+    """MAKF (003 eq. 37; Geng & Wang 2008): P_pred = L Phi P Phi^T L + Q with
+    N = C_k - H Q H^T - R and J = Phi P Phi^T. Needs H = [diag(s) 0]."""
 
     name = "multiple-fading"
 
-    def factors(self, PhiPPhi, Q, H, R, innovation) -> np.ndarray:
-        s = _diagonal_selection(H)
-        m = s.shape[-1]
-        C = self.innovation_covariance(innovation)
-        N = np.diagonal(C - _sandwich(H, Q) - R, axis1=-2, axis2=-1)
-        J = np.diagonal(PhiPPhi, axis1=-2, axis2=-1)[..., :m]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lam = np.sqrt(np.maximum(N, 0.0) / (s * s * J))
-        return self._bound(lam)
-
     def predicted_covariance(self, PhiPPhi, Q, H, R, innovation):
-        lam_m = self.factors(PhiPPhi, Q, H, R, innovation)
-        lam = _full_factors(lam_m, PhiPPhi.shape[-1])
-        return lam[:, :, None] * PhiPPhi * lam[:, None, :] + Q, lam_m
+        C = self.innovation_covariance(innovation)
+        lam, L = self._factors(C - _sandwich(H, Q) - R, PhiPPhi, H)
+        return L @ PhiPPhi @ np.swapaxes(L, -1, -2) + Q, lam
 
 
-class ImprovedMultipleFadingFactors(InnovationFading):
+class ImprovedMultipleFadingFactors(_PerAxisFading):
     """IMAKF (003 eqs. 41-42, 50-53): the process noise is faded too,
-    P_pred = L (Phi P Phi^T + Q) L, lambda_i = max(1, sqrt(N_ii / (s_i^2 J_ii))),
-    N = C_k - R, J = Phi P Phi^T + Q. Needs H = [diag(s) 0]."""
+    P_pred = L (Phi P Phi^T + Q) L with N = C_k - R and J = Phi P Phi^T + Q.
+    Needs H = [diag(s) 0]."""
 
     name = "improved-multiple-fading"
 
-    def factors(self, PhiPPhi, Q, H, R, innovation) -> np.ndarray:
-        s = _diagonal_selection(H)
-        m = s.shape[-1]
-        C = self.innovation_covariance(innovation)
-        N = np.diagonal(C - R, axis1=-2, axis2=-1)
-        J = np.diagonal(PhiPPhi + Q, axis1=-2, axis2=-1)[..., :m]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lam = np.sqrt(np.maximum(N, 0.0) / (s * s * J))
-        return self._bound(lam)
-
     def predicted_covariance(self, PhiPPhi, Q, H, R, innovation):
-        lam_m = self.factors(PhiPPhi, Q, H, R, innovation)
-        lam = _full_factors(lam_m, PhiPPhi.shape[-1])
-        return lam[:, :, None] * (PhiPPhi + Q) * lam[:, None, :], lam_m
-
-
-def _full_factors(lam_m: np.ndarray, n: int) -> np.ndarray:
-    """Factors of all n states: lam_m for the first m, 1 for the rest."""
-    lam = np.ones(lam_m.shape[:-1] + (n,))
-    lam[..., : lam_m.shape[-1]] = lam_m
-    return lam
+        C = self.innovation_covariance(innovation)
+        J = PhiPPhi + Q
+        lam, L = self._factors(C - R, J, H)
+        return L @ J @ np.swapaxes(L, -1, -2), lam

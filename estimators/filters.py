@@ -13,7 +13,7 @@ from typing import Callable
 
 import numpy as np
 
-from estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors,
+from estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors, InnovationFading,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
 
 
@@ -79,6 +79,7 @@ class GaussianFilter:
     def __init__(self, name: str, rule: IntegrationRule, adaptation: AdaptationPolicy,
                  joseph: bool = True) -> None:
         self.name, self.rule, self.adaptation, self.joseph = name, rule, adaptation, joseph
+        self.factor_axes = "measurement"
         self.x = self.P = None
         self.factors = np.zeros((0, 0))
         self.innovation = self.S = None
@@ -143,11 +144,14 @@ class GaussianFilter:
 
 @dataclass(frozen=True)
 class FilterEntry:
-    """A named filter of the catalogue: rule and adaptation factories, and its source."""
+    """A named filter of the catalogue: rule and adaptation factories, its source, and
+    the axes along which a model forms per-axis fading factors ("measurement": the
+    measurement's own axes, as printed in the papers; "local-level": E, N, U)."""
 
     rule: Callable[[], IntegrationRule]
     adaptation: Callable[..., AdaptationPolicy]
     description: str
+    factor_axes: str = "measurement"
 
 
 FILTERS: dict[str, FilterEntry] = {
@@ -158,6 +162,10 @@ FILTERS: dict[str, FilterEntry] = {
                         "multiple fading factors (003 eq. 37)"),
     "imakf": FilterEntry(LinearRule, ImprovedMultipleFadingFactors,
                          "improved multiple fading factors (003 eqs. 41-42, 50)"),
+    "makf-n": FilterEntry(LinearRule, MultipleFadingFactors,
+                          "MAKF with factors along local E, N, U", "local-level"),
+    "imakf-n": FilterEntry(LinearRule, ImprovedMultipleFadingFactors,
+                           "IMAKF with factors along local E, N, U", "local-level"),
 }
 
 
@@ -168,6 +176,9 @@ def make_filter(name: str, **adaptation_options) -> GaussianFilter:
     except KeyError:
         raise KeyError(f"unknown filter {name!r}; known filters: "
                        + ", ".join(sorted(FILTERS))) from None
-    adaptation = (entry.adaptation(**adaptation_options) if adaptation_options
-                  else entry.adaptation())
-    return GaussianFilter(name, entry.rule(), adaptation)
+    if adaptation_options and not issubclass(entry.adaptation, InnovationFading):
+        adaptation_options = {}  # options of the fading factors do not apply
+    adaptation = entry.adaptation(**adaptation_options)
+    filt = GaussianFilter(name, entry.rule(), adaptation)
+    filt.factor_axes = entry.factor_axes
+    return filt

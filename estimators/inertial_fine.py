@@ -23,7 +23,7 @@ import numpy as np
 from estimators.filters import GaussianFilter
 from estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
-from models.attitude import dcm_to_rotvec, rotvec_to_dcm, skew
+from models.attitude import rotvec_to_dcm, skew
 
 V, PHI, EPS, NABLA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 N_STATES = 12
@@ -73,36 +73,39 @@ class FineInputs:
     Psi2: np.ndarray
 
 
-def fine_inputs(integrals: list[BodyFrameIntegrals], t1: float, duration: float,
+def fine_inputs(integrals: BodyFrameIntegrals, t1: float, duration: float,
                 step: float) -> FineInputs:
-    """Cut the episodes' integrals into filter steps from t1 (s) for duration (s)."""
-    dt = integrals[0].t[1] - integrals[0].t[0]
+    """Cut one episode's integrals into filter steps from t1 (s) for duration (s); the
+    result has a batch axis of one (see ``stack_inputs``)."""
+    t = integrals.t
+    dt = t[1] - t[0]
     per_step = int(round(step / dt))
-    k1 = int(round(t1 / dt))
-    K = int(round(duration / step))
     if per_step < 1 or abs(per_step * dt - step) > 1e-9:
         raise ValueError(f"filter step {step} s must be a whole number of IMU intervals")
-    idx = k1 + per_step * np.arange(K + 1)
-    if idx[-1] >= integrals[0].t.size:
-        raise ValueError(f"the data end at {integrals[0].t[-1]:g} s, before t1 + duration = "
+    K = int(round(duration / step))
+    idx = int(round(t1 / dt)) + per_step * np.arange(K + 1)
+    if idx[-1] >= t.size:
+        raise ValueError(f"the data end at {t[-1]:g} s, before t1 + duration = "
                          f"{t1 + duration:g} s")
-    C = np.stack([g.C_s_s0[idx] for g in integrals])
-    W = np.stack([g.V_f[idx] - g.V_la[idx] for g in integrals])
-    Psi_cum = np.stack([g.Psi_cum[idx] for g in integrals])
-    # Psi2 over [t_a, t_b] = int C (t_b - tau) = t_b Psi - int C tau; int C tau from
-    # the running sums at IMU rate.
-    t = integrals[0].t
+    C = integrals.C_s_s0
+    W = integrals.V_f[idx] - integrals.V_la[idx]
+    Psi = np.diff(integrals.Psi_cum[idx], axis=0)
+    # Psi2 over [t_a, t_b] = int C (t_b - tau) dtau = t_b Psi - int C tau dtau.
     tau_mid = 0.5 * (t[:-1] + t[1:])
-    CT = []
-    for g in integrals:
-        inc = 0.5 * dt * (g.C_s_s0[:-1] + g.C_s_s0[1:]) * tau_mid[:, None, None]
-        cum = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(inc, axis=0)])
-        CT.append(cum[idx])
-    CT = np.stack(CT)
-    Psi = np.diff(Psi_cum, axis=1)
-    t_end = t[idx[1:]]
-    Psi2 = t_end[None, :, None, None] * Psi - np.diff(CT, axis=1)
-    return FineInputs(t=t[idx], C_s_s0=C, dW=np.diff(W, axis=1), Psi=Psi, Psi2=Psi2)
+    C_tau = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(
+        0.5 * dt * (C[:-1] + C[1:]) * tau_mid[:, None, None], axis=0)])[idx]
+    Psi2 = t[idx[1:], None, None] * Psi - np.diff(C_tau, axis=0)
+    return FineInputs(t=t[idx], C_s_s0=C[idx][None], dW=np.diff(W, axis=0)[None],
+                      Psi=Psi[None], Psi2=Psi2[None])
+
+
+def stack_inputs(inputs: list[FineInputs]) -> FineInputs:
+    """One batch from several episodes' inputs (same time grid)."""
+    for other in inputs[1:]:
+        if not np.array_equal(other.t, inputs[0].t):
+            raise ValueError("episodes must share the filter time grid")
+    return FineInputs(t=inputs[0].t, **{name: np.concatenate([getattr(i, name) for i in inputs])
+                                        for name in ("C_s_s0", "dW", "Psi", "Psi2")})
 
 
 @dataclass
@@ -129,7 +132,12 @@ class FineResult:
 
 def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
                        tuning: FineTuning, lat: float, h: float) -> FineResult:
-    """Run one filter on a batch from the initial attitude estimate C_s^i(t1) (B, 3, 3)."""
+    """Run one filter on a batch from the initial attitude estimate C_s^i(t1) (B, 3, 3).
+
+    Per-axis fading factors are formed along the measurement's inertial axes (as in 003),
+    or along local East, North, Up when the filter's factor_axes is "local-level".
+    """
+    local_level_factors = filt.factor_axes == "local-level"
     t = inputs.t
     B, K = inputs.dW.shape[:2]
     T = tuning.step
@@ -177,6 +185,8 @@ def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np
         Z_acc += np.einsum("bij,bj->bi", C_s0_i, inputs.dW[:, k])
         z = Z_acc - (V_grav[k + 1] - V_grav[0])
         R = np.broadcast_to(Cni[k + 1] @ R_n @ C_i_n[k + 1], (B, 3, 3))
+        if local_level_factors:
+            filt.adaptation.basis = np.broadcast_to(C_i_n[k + 1], (B, 3, 3))
         filt.update(z, H, R, float(t[k + 1]))
         factors[:, k] = filt.factors
         x_hist[:, k + 1] = filt.x
@@ -193,8 +203,3 @@ def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np
     return FineResult(t=t, C_s_n=C_s_n, P=P_hist, sigma_n=sigma_n, x=x_hist, factors=factors,
                       diverged=filt.health.diverged.copy(), diverged_time=filt.health.time.copy(),
                       diverged_reason=list(filt.health.reason), seconds_per_epoch=elapsed / K)
-
-
-def misalignment_n(C_s_n_true: np.ndarray, C_s_n_est: np.ndarray) -> np.ndarray:
-    """Misalignment phi^n (..., 3) rad (E, N, U) with C_true = exp([phi x]) C_est."""
-    return dcm_to_rotvec(C_s_n_true @ np.swapaxes(C_s_n_est, -1, -2))

@@ -63,7 +63,50 @@ def build_parser() -> argparse.ArgumentParser:
     fid.add_argument("--duration", type=_positive_float("--duration"), metavar="S")
     fid.add_argument("--seed", type=_seed, default=0, metavar="N")
     fid.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ")
+    bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison")
+    bench.add_argument("paper", choices=["paper003"], help="which paper's experiment")
+    bench.add_argument("--episodes", type=_positive_int("--episodes"), default=50, metavar="N")
+    bench.add_argument("--seed", type=_seed, default=0, metavar="S", help="campaign seed")
+    bench.add_argument("--filters", default="kf,sakf,makf,imakf",
+                       help="comma-separated filter names (default: kf,sakf,makf,imakf)")
+    bench.add_argument("--out", metavar="DIR", help="directory for tables, series and plots")
+    bench.add_argument("--json", metavar="FILE", help="write the summary as JSON")
+    bench.add_argument("--resume", action="store_true",
+                       help="reuse the episodes already finished in --out")
+    bench.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
+                       help="parallel processes (default: all cores)")
     return parser
+
+
+def _positive_int(field: str):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{field} must be an integer >= 1, got {text!r}"
+                                              ) from None
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"{field} must be an integer >= 1, got {value}")
+        return value
+    return parse
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from scenarios.paper003 import run_campaign
+    from scenarios.report import format_tables, write_outputs
+
+    if args.resume and not args.out:
+        raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
+    filters = [f.strip() for f in args.filters.split(",") if f.strip()]
+    start = time.perf_counter()
+    result = run_campaign(episodes=args.episodes, seed=args.seed, filters=filters,
+                          out_dir=args.out, resume=args.resume, workers=args.workers)
+    elapsed = time.perf_counter() - start
+    print(format_tables(result))
+    for path in write_outputs(result, args.out, args.json):
+        print(f"wrote {path}")
+    print(f"{args.episodes} episodes x {len(filters)} filters x 2 starts in {elapsed:.1f} s")
+    return 0
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -105,6 +148,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "simulate":
             return _cmd_simulate(args)
+        if args.command == "bench":
+            return _cmd_bench(args)
         return _cmd_fidelity(args)
     except ConfigError as exc:
         print(f"aligngym: error: {exc}", file=sys.stderr)

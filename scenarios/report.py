@@ -1,0 +1,142 @@
+"""Campaign output: the paper-shaped tables, a tidy per-episode table, time series, plots
+and the machine-readable JSON summary."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from models.units import arcmin
+from scenarios.paper003 import AXES, CampaignResult
+
+TIDY_COLUMNS = (
+    ["seed", "filter", "start"]
+    + [f"final_{a}_arcmin" for a in AXES] + [f"rms_{a}_arcmin" for a in AXES]
+    + [f"final_sigma_{a}_arcmin" for a in AXES]
+    + ["final_pitch_arcmin", "final_roll_arcmin", "final_heading_arcmin",
+       "heading_convergence_s", "nees_mean", "nees_final", "diverged", "diverged_reason",
+       "diverged_time_s", "ms_per_epoch"])
+
+
+def format_tables(result: CampaignResult) -> str:
+    """The coarse and fine tables, shaped like the paper's."""
+    lines = []
+    n = len(result.seeds)
+    coarse = result.coarse_summary()
+    lines.append(f"Coarse alignment (inertial frame, {result.experiment.coarse_duration:g} s), "
+                 f"{n} runs: error (deg)")
+    lines.append(f"{'':8s}" + "".join(f"{a:>14s}" for a in AXES))
+    for key, label in (("mean_deg", "mean"), ("max_deg", "max"), ("min_deg", "min")):
+        lines.append(f"{label:8s}" + "".join(f"{v:14.5f}" for v in coarse[key]))
+    fine = result.fine_summary()
+    for start in ("mean", "max"):
+        err = result.start_errors[start] / arcmin
+        lines.append("")
+        lines.append(f"Fine alignment ({result.experiment.fine_duration:g} s) from the {start} "
+                     f"coarse error [{', '.join(f'{e:.2f}' for e in err)}] arcmin: "
+                     "final error (arcmin)")
+        lines.append(f"{'filter':8s}{'stat':6s}" + "".join(f"{a:>12s}" for a in AXES)
+                     + f"{'diverged':>10s}")
+        for name, per_start in fine.items():
+            s = per_start[start]
+            for stat in ("mean", "std", "rms"):
+                row = s[f"{stat}_arcmin"]
+                tail = f"{s['diverged_fraction']:10.0%}" if stat == "mean" else ""
+                lines.append(f"{name if stat == 'mean' else '':8s}{stat:6s}"
+                             + "".join(f"{v:12.4f}" for v in row) + tail)
+    return "\n".join(lines)
+
+
+def tidy_rows(result: CampaignResult) -> list[dict]:
+    """One row per (episode, filter, start)."""
+    rows = []
+    window = result.experiment.rms_window
+    for run in result.runs:
+        t = run.result.t
+        in_window = t >= t[-1] - window - 1e-9
+        rms = np.sqrt(np.mean(run.error_n[:, in_window] ** 2, axis=1)) / arcmin
+        final = run.error_n[:, -1] / arcmin
+        sigma = run.result.sigma_n[:, -1] / arcmin
+        euler = run.euler_error[:, -1] / arcmin
+        ms = run.result.seconds_per_epoch * 1e3 / len(result.seeds)
+        for b, seed in enumerate(result.seeds):
+            rows.append(dict(zip(TIDY_COLUMNS, [
+                seed, run.filter, run.start, *final[b], *rms[b], *sigma[b], *euler[b],
+                float(run.heading_convergence[b]), float(np.mean(run.nees[b, 1:])),
+                float(run.nees[b, -1]), bool(run.diverged[b]), run.reason[b],
+                float(run.result.diverged_time[b] - t[0]) if run.result.diverged[b] else "",
+                ms])))
+    return rows
+
+
+def write_outputs(result: CampaignResult, out_dir: str | Path | None,
+                  json_path: str | Path | None) -> list[Path]:
+    """Write results.csv, coarse.csv, timeseries.npz, error plots (PNG) to out_dir, and the
+    JSON summary to json_path. Returns the paths written."""
+    written = []
+    if json_path is not None:
+        path = Path(json_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(result.summary(), indent=2))
+        written.append(path)
+    if out_dir is None:
+        return written
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "results.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=TIDY_COLUMNS)
+        writer.writeheader()
+        writer.writerows(tidy_rows(result))
+    with open(out / "coarse.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["seed"] + [f"{a}_deg" for a in AXES])
+        for seed, e in zip(result.seeds, np.rad2deg(result.coarse_errors)):
+            writer.writerow([seed, *e])
+    series = {"t": result.runs[0].result.t - result.runs[0].result.t[0],
+              "seed": np.asarray(result.seeds)}
+    for run in result.runs:
+        key = f"{run.filter}__{run.start}"
+        series[f"{key}__error_arcmin"] = (run.error_n / arcmin).astype(np.float32)
+        series[f"{key}__sigma_arcmin"] = (run.result.sigma_n / arcmin).astype(np.float32)
+        series[f"{key}__factors"] = run.result.factors.astype(np.float32)
+        series[f"{key}__nees"] = run.nees.astype(np.float32)
+    np.savez_compressed(out / "timeseries.npz", **series)
+    written += [out / "results.csv", out / "coarse.csv", out / "timeseries.npz"]
+    written += plot_errors(result, out)
+    return written
+
+
+def plot_errors(result: CampaignResult, out: Path) -> list[Path]:
+    """Per starting error: each filter's misalignment on the first episode with its +-3
+    sigma bound, one panel per axis (symmetric-log scale, arcmin)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    for start in ("mean", "max"):
+        fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+        for i, run in enumerate(r for r in result.runs if r.start == start):
+            color = f"C{i}"
+            t = run.result.t - run.result.t[0]
+            for axis, ax in enumerate(axes):
+                ax.plot(t, run.error_n[0, :, axis] / arcmin, color=color, label=run.filter)
+                bound = 3 * run.result.sigma_n[0, :, axis] / arcmin
+                ax.plot(t, bound, color=color, ls="--", lw=0.8)
+                ax.plot(t, -bound, color=color, ls="--", lw=0.8)
+        for axis, ax in enumerate(axes):
+            ax.set_yscale("symlog", linthresh=0.1)
+            ax.set_ylabel(f"{AXES[axis]} (arcmin)")
+            ax.grid(True, alpha=0.3)
+        axes[0].legend(ncol=4, fontsize=8)
+        axes[0].set_title(f"Fine alignment from the {start} coarse error, seed "
+                          f"{result.seeds[0]} (dashed: +-3 sigma)")
+        axes[-1].set_xlabel("time since the start of fine alignment (s)")
+        fig.tight_layout()
+        path = out / f"fine_error_{start}.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        paths.append(path)
+    return paths
