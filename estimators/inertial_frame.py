@@ -174,14 +174,9 @@ def attitude_from_inertial(C_s0_i: np.ndarray, integrals: BodyFrameIntegrals, in
 def static_coarse_alignment(f_b: np.ndarray, omega_ib_b: np.ndarray, lat: float
                             ) -> np.ndarray:
     """Analytic coarse alignment on a static base: C_b^n (3, 3) from the mean specific force
-    f_b (3,) m/s^2 and mean inertial rate omega_ib_b (3,) rad/s, by the double-vector
-    construction on (f, omega, f x omega), re-orthonormalised."""
-    f_n = np.array([0.0, 0.0, 1.0])  # direction of the specific force at rest (up)
+    f_b (3,) m/s^2 and mean inertial rate omega_ib_b (3,) rad/s. The specific force (up)
+    is the primary vector, the earth rate fixes the heading (TRIAD), so the level error is
+    the accelerometer bias over g and the heading error the east drift over Omega cos L."""
+    f_n = np.array([0.0, 0.0, 1.0])
     w_n = np.array([0.0, np.cos(lat), np.sin(lat)])
-    f_b = np.asarray(f_b, dtype=float)
-    w_b = np.asarray(omega_ib_b, dtype=float)
-    f_b = f_b / np.linalg.norm(f_b)
-    w_b = w_b / np.linalg.norm(w_b)
-    N = np.stack([f_n, w_n, np.cross(f_n, w_n)])
-    Bm = np.stack([f_b, w_b, np.cross(f_b, w_b)])
-    return nearest_rotation(np.linalg.solve(Bm, N).T)
+    return triad(f_n, w_n) @ triad(np.asarray(f_b, float), np.asarray(omega_ib_b, float)).T

@@ -202,11 +202,12 @@ def run_filter(name: str, start: str, start_error: np.ndarray,
                episodes: list[PreparedEpisode], experiment: Paper003Experiment,
                tuning: FineTuning, divergence: DivergenceRule = DivergenceRule()
                ) -> FilterRun:
-    """One filter from a common starting misalignment (3,) rad on all episodes."""
+    """One filter on all episodes from a starting misalignment phi E, N, U (rad): common
+    (3,) or per episode (B, 3)."""
     inputs = stack_inputs([e.inputs for e in episodes])
     lat, h = episodes[0].lat, episodes[0].h
     C_true = np.stack([e.C_s_n_true for e in episodes])
-    C_start = C_n_i(inputs.t[0], lat) @ rotvec_to_dcm(-start_error) @ C_true[:, 0]
+    C_start = C_n_i(inputs.t[0], lat) @ rotvec_to_dcm(-np.asarray(start_error)) @ C_true[:, 0]
     filt = make_filter(name, rho=experiment.rho)
     result = run_fine_alignment(filt, inputs, C_start, tuning, lat, h)
     error_n = misalignment(C_true, result.C_s_n)
