@@ -127,7 +127,8 @@ class GaussianFilter:
         S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
         K = np.swapaxes(np.linalg.solve(S_safe, H @ P_pred), -1, -2)
         x_new = self.x + np.einsum("bij,bj->bi", K, innovation)
-        I_KH = np.eye(P_pred.shape[-1]) - K @ H
+        I_KH = -(K @ H)
+        I_KH[..., np.arange(I_KH.shape[-1]), np.arange(I_KH.shape[-1])] += 1.0
         if self.joseph:
             P_new = I_KH @ P_pred @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
         else:

@@ -26,6 +26,7 @@ from estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
 from models.attitude import rotvec_to_dcm, skew
 
 V, PHI, EPS, NABLA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
+_I3 = np.eye(3)
 N_STATES = 12
 
 
@@ -130,76 +131,113 @@ class FineResult:
     seconds_per_epoch: float
 
 
-def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
-                       tuning: FineTuning, lat: float, h: float) -> FineResult:
-    """Run one filter on a batch from the initial attitude estimate C_s^i(t1) (B, 3, 3).
+class InertialFineAlignment:
+    """One filter on a batch of episodes, advanced one epoch at a time (a campaign runs
+    all epochs; the gymnasium env steps it and may rescale the noise each epoch).
 
-    Per-axis fading factors are formed along the measurement's inertial axes (as in 003),
-    or along local East, North, Up when the filter's factor_axes is "local-level".
+    C_s_i_start: (B, 3, 3) initial attitude estimate C_s^i(t1); lat (rad) and h (m): the
+    known position of each episode's IMU, (B,) or scalar. Per-axis fading factors
+    are formed along the measurement's inertial axes (as in 003), or along local East,
+    North, Up when the filter's factor_axes is "local-level".
     """
-    local_level_factors = filt.factor_axes == "local-level"
-    t = inputs.t
-    B, K = inputs.dW.shape[:2]
-    T = tuning.step
-    # C_s0^i estimate per episode: C_s^i(t1) C_s0^s(t1).
-    C_s0_i = C_s_i_start @ np.swapaxes(inputs.C_s_s0[:, 0], -1, -2)
-    Cni = C_n_i(t, lat)
-    g_mid = gravity_i(0.5 * (t[:-1] + t[1:]), lat, h)
-    V_grav = gravity_velocity_i(t, lat, h)
-    q_g = tuning.gyro_noise_density ** 2
-    q_a = tuning.accel_noise_density ** 2
-    R_n = np.diag(np.square(tuning.measurement_sigma))
-    H = np.broadcast_to(np.hstack([np.eye(3), np.zeros((3, 9))]), (B, 3, N_STATES))
 
-    filt.reset(np.zeros((B, N_STATES)), tuning.initial_covariance(
-        np.broadcast_to(Cni[0], (B, 3, 3))), m=3)
-    Z_acc = np.zeros((B, 3))
-    C_s_n = np.empty((B, K + 1, 3, 3))
-    P_hist = np.empty((B, K + 1, N_STATES, N_STATES))
-    x_hist = np.zeros((B, K + 1, N_STATES))
-    factors = np.zeros((B, K, filt.adaptation.n_factors))
-    C_i_n = np.swapaxes(Cni, -1, -2)
+    def __init__(self, filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
+                 tuning: FineTuning, lat: np.ndarray | float, h: np.ndarray | float) -> None:
+        self.filt, self.inputs, self.tuning = filt, inputs, tuning
+        t = inputs.t
+        self.batch, self.epochs = inputs.dW.shape[:2]
+        B, K = self.batch, self.epochs
+        # C_s0^i estimate per episode: C_s^i(t1) C_s0^s(t1).
+        self.C_s0_i = C_s_i_start @ np.swapaxes(inputs.C_s_s0[:, 0], -1, -2)
+        lat = np.broadcast_to(np.asarray(lat, dtype=float), (B,))[:, None]
+        h = np.broadcast_to(np.asarray(h, dtype=float), (B,))[:, None]
+        self._C_n_i = C_n_i(t[None], lat)                          # (B, K+1, 3, 3)
+        self._C_i_n = np.swapaxes(self._C_n_i, -1, -2)
+        self._g_mid = gravity_i(0.5 * (t[:-1] + t[1:])[None], lat, h)  # (B, K, 3)
+        self._V_grav = gravity_velocity_i(t[None], lat, h)           # (B, K+1, 3)
+        self._H = np.broadcast_to(np.hstack([np.eye(3), np.zeros((3, 9))]), (B, 3, N_STATES))
+        self._R_n = np.diag(np.square(tuning.measurement_sigma))
+        self._local_level_factors = filt.factor_axes == "local-level"
+        filt.reset(np.zeros((B, N_STATES)), tuning.initial_covariance(self._C_n_i[:, 0]), m=3)
+        self._Z_acc = np.zeros((B, 3))
+        self.C_s_n = np.empty((B, K + 1, 3, 3))
+        self.P = np.empty((B, K + 1, N_STATES, N_STATES))
+        self.x = np.zeros((B, K + 1, N_STATES))
+        self.factors = np.zeros((B, K, filt.adaptation.n_factors))
+        self.k = 0
+        self.compute_seconds = 0.0
+        self._record()
 
-    def record(k: int) -> None:
-        C_s_n[:, k] = C_i_n[k] @ C_s0_i @ inputs.C_s_s0[:, k]
-        P_hist[:, k] = filt.P
+    @property
+    def done(self) -> bool:
+        return self.k >= self.epochs
 
-    record(0)
-    start = time.perf_counter()
-    for k in range(K):
-        Psi_i = C_s0_i @ inputs.Psi[:, k]
-        Psi2_i = C_s0_i @ inputs.Psi2[:, k]
-        G = skew(g_mid[k])
-        Phi = np.broadcast_to(np.eye(N_STATES), (B, N_STATES, N_STATES)).copy()
+    def _record(self) -> None:
+        k = self.k
+        self.C_s_n[:, k] = self._C_i_n[:, k] @ self.C_s0_i @ self.inputs.C_s_s0[:, k]
+        self.P[:, k] = self.filt.P
+
+    def step(self, q_scale: tuple[float, float] = (1.0, 1.0), r_scale: float = 1.0) -> None:
+        """One epoch. q_scale multiplies the (gyro, accelerometer) white-noise variances,
+        r_scale the measurement-noise variance (1 = as tuned)."""
+        if self.done:
+            raise RuntimeError("the fine alignment is finished")
+        start = time.perf_counter()
+        k, B, T, filt, inputs = self.k, self.batch, self.tuning.step, self.filt, self.inputs
+        q_g = self.tuning.gyro_noise_density ** 2 * q_scale[0]
+        q_a = self.tuning.accel_noise_density ** 2 * q_scale[1]
+        Psi_i = self.C_s0_i @ inputs.Psi[:, k]
+        Psi2_i = self.C_s0_i @ inputs.Psi2[:, k]
+        G = skew(self._g_mid[:, k])
+        Phi = np.zeros((B, N_STATES, N_STATES))
+        Phi[:, np.arange(N_STATES), np.arange(N_STATES)] = 1.0
         Phi[:, V, PHI] = -G * T
         Phi[:, V, EPS] = G @ Psi2_i
         Phi[:, V, NABLA] = Psi_i
         Phi[:, PHI, EPS] = -Psi_i
         Q = np.zeros((B, N_STATES, N_STATES))
-        Q[:, V, V] = q_a * T * np.eye(3) + q_g * T ** 3 / 3.0 * G @ G.T
+        Q[:, V, V] = q_a * T * _I3 + q_g * T ** 3 / 3.0 * G @ np.swapaxes(G, -1, -2)
         Q[:, V, PHI] = -q_g * T ** 2 / 2.0 * G
         Q[:, PHI, V] = Q[:, V, PHI].swapaxes(-1, -2)
-        Q[:, PHI, PHI] = q_g * T * np.eye(3)
+        Q[:, PHI, PHI] = q_g * T * _I3
         filt.predict(Phi, Q)
 
-        Z_acc += np.einsum("bij,bj->bi", C_s0_i, inputs.dW[:, k])
-        z = Z_acc - (V_grav[k + 1] - V_grav[0])
-        R = np.broadcast_to(Cni[k + 1] @ R_n @ C_i_n[k + 1], (B, 3, 3))
-        if local_level_factors:
-            filt.adaptation.basis = np.broadcast_to(C_i_n[k + 1], (B, 3, 3))
-        filt.update(z, H, R, float(t[k + 1]))
-        factors[:, k] = filt.factors
-        x_hist[:, k + 1] = filt.x
+        self._Z_acc += np.einsum("bij,bj->bi", self.C_s0_i, inputs.dW[:, k])
+        z = self._Z_acc - (self._V_grav[:, k + 1] - self._V_grav[:, 0])
+        R = r_scale * self._C_n_i[:, k + 1] @ self._R_n @ self._C_i_n[:, k + 1]
+        if self._local_level_factors:
+            filt.adaptation.basis = self._C_i_n[:, k + 1]
+        filt.update(z, self._H, R, float(inputs.t[k + 1]))
+        self.factors[:, k] = filt.factors
+        self.x[:, k + 1] = filt.x
         # Feedback of the misalignment into this filter's C_s0^i.
         live = ~filt.health.diverged
         correction = rotvec_to_dcm(np.where(live[:, None], filt.x[:, PHI], 0.0))
-        C_s0_i = correction @ C_s0_i
+        self.C_s0_i = correction @ self.C_s0_i
         filt.x[:, PHI] = np.where(live[:, None], 0.0, filt.x[:, PHI])
-        record(k + 1)
-    elapsed = time.perf_counter() - start
+        self.k += 1
+        self._record()
+        self.compute_seconds += time.perf_counter() - start
 
-    P_phi_n = C_i_n[None] @ P_hist[:, :, PHI, PHI] @ Cni[None]
-    sigma_n = np.sqrt(np.maximum(np.diagonal(P_phi_n, axis1=-2, axis2=-1), 0.0))
-    return FineResult(t=t, C_s_n=C_s_n, P=P_hist, sigma_n=sigma_n, x=x_hist, factors=factors,
-                      diverged=filt.health.diverged.copy(), diverged_time=filt.health.time.copy(),
-                      diverged_reason=list(filt.health.reason), seconds_per_epoch=elapsed / K)
+    def result(self) -> FineResult:
+        """The run so far (all epochs once done)."""
+        k = self.k
+        P_phi_n = (self._C_i_n[:, : k + 1] @ self.P[:, : k + 1, PHI, PHI]
+                   @ self._C_n_i[:, : k + 1])
+        sigma_n = np.sqrt(np.maximum(np.diagonal(P_phi_n, axis1=-2, axis2=-1), 0.0))
+        health = self.filt.health
+        return FineResult(t=self.inputs.t[: k + 1], C_s_n=self.C_s_n[:, : k + 1],
+                          P=self.P[:, : k + 1], sigma_n=sigma_n, x=self.x[:, : k + 1],
+                          factors=self.factors[:, :k], diverged=health.diverged.copy(),
+                          diverged_time=health.time.copy(), diverged_reason=list(health.reason),
+                          seconds_per_epoch=self.compute_seconds / max(k, 1))
+
+
+def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
+                       tuning: FineTuning, lat: np.ndarray | float, h: np.ndarray | float
+                       ) -> FineResult:
+    """Run one filter over all epochs for a batch (see InertialFineAlignment)."""
+    run = InertialFineAlignment(filt, inputs, C_s_i_start, tuning, lat, h)
+    while not run.done:
+        run.step()
+    return run.result()

@@ -22,22 +22,24 @@ from models.earth import OMEGA_IE, normal_gravity
 
 # --- earth rotation in the inertial frame ------------------------------------------------
 
-def C_n_i(t: np.ndarray, lat: float) -> np.ndarray:
-    """C_n^i(t) = (C_e^n C_i^e(t))^T for time since t0 (..., ) s -> (..., 3, 3) (003 eq. 11-12)."""
-    t = np.asarray(t, dtype=float)
+def C_n_i(t: np.ndarray, lat: np.ndarray | float) -> np.ndarray:
+    """C_n^i(t) = (C_e^n C_i^e(t))^T (003 eqs. 11-12) for time since t0 (s) and latitude
+    (rad), broadcast against each other -> (..., 3, 3)."""
+    t, lat = np.broadcast_arrays(np.asarray(t, dtype=float), np.asarray(lat, dtype=float))
     sL, cL = np.sin(lat), np.cos(lat)
-    C_e_n = np.array([[0.0, 1.0, 0.0], [-sL, 0.0, cL], [cL, 0.0, sL]])
     c, s = np.cos(OMEGA_IE * t), np.sin(OMEGA_IE * t)
-    z, o = np.zeros_like(c), np.ones_like(c)
-    C_i_e = np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1),
-                      np.stack([z, z, o], -1)], -2)
-    return np.swapaxes(C_e_n @ C_i_e, -1, -2)
+    z = np.zeros_like(c)
+    # Rows of C_n^i: E, N, U of n expressed in i.
+    return np.stack([np.stack([-s, c, z], -1),
+                     np.stack([-sL * c, -sL * s, cL], -1),
+                     np.stack([cL * c, cL * s, sL], -1)], -1)
 
 
-def gravity_velocity_i(t: np.ndarray, lat: float, h: float) -> np.ndarray:
+def gravity_velocity_i(t: np.ndarray, lat: np.ndarray | float, h: np.ndarray | float
+                       ) -> np.ndarray:
     """V^i(t) = integral from t0 of -g^i: the specific-force velocity a still IMU senses in
-    i (003 eq. 20), (..., 3) m/s for time since t0 (...) s."""
-    t = np.asarray(t, dtype=float)
+    i (003 eq. 20), (..., 3) m/s; t (s since t0), lat (rad), h (m) broadcast together."""
+    t, lat, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (t, lat, h)))
     g = normal_gravity(lat, h)
     w = OMEGA_IE
     return np.stack([g * np.cos(lat) / w * np.sin(w * t),
@@ -45,9 +47,10 @@ def gravity_velocity_i(t: np.ndarray, lat: float, h: float) -> np.ndarray:
                      g * np.sin(lat) * t], -1)
 
 
-def gravity_i(t: np.ndarray, lat: float, h: float) -> np.ndarray:
-    """g^i(t) = C_n^i(t) [0, 0, -g], (..., 3) m/s^2."""
-    return -normal_gravity(lat, h) * C_n_i(t, lat)[..., :, 2]
+def gravity_i(t: np.ndarray, lat: np.ndarray | float, h: np.ndarray | float) -> np.ndarray:
+    """g^i(t) = C_n^i(t) [0, 0, -g], (..., 3) m/s^2 (arguments broadcast together)."""
+    t, lat, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (t, lat, h)))
+    return -normal_gravity(lat, h)[..., None] * C_n_i(t, lat)[..., :, 2]
 
 
 # --- shared per-episode integrals --------------------------------------------------------

@@ -89,11 +89,17 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
     """DCM (..., 3, 3) of unit quaternion (..., 4)."""
     q = np.asarray(q, dtype=float)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    C = np.empty(q.shape[:-1] + (3, 3))
+    C[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    C[..., 0, 1] = 2 * (x * y - w * z)
+    C[..., 0, 2] = 2 * (x * z + w * y)
+    C[..., 1, 0] = 2 * (x * y + w * z)
+    C[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    C[..., 1, 2] = 2 * (y * z - w * x)
+    C[..., 2, 0] = 2 * (x * z - w * y)
+    C[..., 2, 1] = 2 * (y * z + w * x)
+    C[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return C
 
 
 def dcm_to_quat(C: np.ndarray) -> np.ndarray:
@@ -149,8 +155,25 @@ def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
 
 
 def dcm_to_rotvec(C: np.ndarray) -> np.ndarray:
-    """Rotation vector log(C) (..., 3) rad of a DCM (..., 3, 3)."""
-    return quat_to_rotvec(dcm_to_quat(C))
+    """Rotation vector log(C) (..., 3) rad of a DCM (..., 3, 3).
+
+    Directly from the skew part, sin(a) axis = vee(C - C^T)/2, and a = atan2(sin, cos):
+    accurate down to zero angle; rotations beyond ~150 deg, where the skew part loses
+    the axis, go through the quaternion.
+    """
+    C = np.asarray(C, dtype=float)
+    w = 0.5 * np.stack([C[..., 2, 1] - C[..., 1, 2], C[..., 0, 2] - C[..., 2, 0],
+                        C[..., 1, 0] - C[..., 0, 1]], -1)
+    s = np.sqrt(np.sum(w * w, axis=-1))
+    c = 0.5 * (C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2] - 1.0)
+    angle = np.arctan2(s, c)
+    small = s < 1e-6
+    scale = np.where(small, 1.0 + s * s / 6.0, angle / np.where(small, 1.0, s))
+    out = scale[..., None] * w
+    large = c < -0.85
+    if np.any(large):
+        out[large] = quat_to_rotvec(dcm_to_quat(C[large]))
+    return out
 
 
 def rot_x(angle: np.ndarray) -> np.ndarray:

@@ -1,0 +1,27 @@
+"""Scenario definitions, MuJoCo runners, the gymnasium env, campaigns and the CLI.
+
+Importing this package registers one gymnasium id per shipped scenario,
+``aligngym/<Scenario>-v0`` (e.g. ``aligngym/ShipSwayRotary-v0``); gymnasium 1.x ignores
+plugin entry points, so registration is explicit here.
+"""
+import gymnasium
+
+from scenarios.config import scenario_names
+
+
+def env_id(scenario: str) -> str:
+    """Gymnasium id of a scenario name: ship-sway-rotary -> aligngym/ShipSwayRotary-v0."""
+    return "aligngym/" + "".join(part.capitalize() for part in scenario.split("-")) + "-v0"
+
+
+ENV_IDS = [env_id(name) for name in scenario_names()]
+for _name, _id in zip(scenario_names(), ENV_IDS):
+    if _id not in gymnasium.registry:
+        gymnasium.register(id=_id, entry_point="scenarios.env:AlignmentEnv",
+                           kwargs={"scenario": _name})
+
+
+def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0, **kwargs):
+    """Per-episode metrics of an estimator run passively in the env (scenarios.env)."""
+    from scenarios.env import evaluate as _evaluate
+    return _evaluate(env_id, estimator, episodes, seed, **kwargs)

@@ -198,37 +198,75 @@ def signed_extreme(errors: np.ndarray, pick) -> np.ndarray:
     return errors[idx, np.arange(errors.shape[1])]
 
 
-def run_filter(name: str, start: str, start_error: np.ndarray,
-               episodes: list[PreparedEpisode], experiment: Paper003Experiment,
-               tuning: FineTuning, divergence: DivergenceRule = DivergenceRule()
-               ) -> FilterRun:
-    """One filter on all episodes from a starting misalignment phi E, N, U (rad): common
-    (3,) or per episode (B, 3)."""
-    inputs = stack_inputs([e.inputs for e in episodes])
-    lat, h = episodes[0].lat, episodes[0].h
-    C_true = np.stack([e.C_s_n_true for e in episodes])
-    C_start = C_n_i(inputs.t[0], lat) @ rotvec_to_dcm(-np.asarray(start_error)) @ C_true[:, 0]
-    filt = make_filter(name, rho=experiment.rho)
-    result = run_fine_alignment(filt, inputs, C_start, tuning, lat, h)
+def start_attitude(episodes: list[PreparedEpisode], start_error: np.ndarray) -> np.ndarray:
+    """Initial estimate C_s^i(t1) (B, 3, 3): the truth turned by a starting misalignment
+    phi E, N, U (rad), common (3,) or per episode (B, 3)."""
+    C_true = np.stack([e.C_s_n_true[0] for e in episodes])
+    t1 = episodes[0].inputs.t[0]
+    lat = np.array([e.lat for e in episodes])
+    return C_n_i(t1, lat) @ rotvec_to_dcm(-np.asarray(start_error)) @ C_true
+
+
+def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],
+                experiment: Paper003Experiment,
+                divergence: DivergenceRule = DivergenceRule()) -> FilterRun:
+    """Errors, hull Euler errors, NEES, divergence and convergence time of a run."""
+    K = result.t.size
+    C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
+    lat = np.array([e.lat for e in episodes])
     error_n = misalignment(C_true, result.C_s_n)
-    C_b_n_est = result.C_s_n @ np.swapaxes(np.stack([e.C_s_b_encoder for e in episodes]), -1, -2)
-    eul = euler_error(np.stack([e.C_b_n_true for e in episodes]), C_b_n_est)
+    C_b_n_est = result.C_s_n @ np.swapaxes(np.stack([e.C_s_b_encoder[:K] for e in episodes]),
+                                           -1, -2)
+    eul = euler_error(np.stack([e.C_b_n_true[:K] for e in episodes]), C_b_n_est)
     # NEES over attitude and biases, in the filter's frames (phi in i).
-    C_ni = C_n_i(inputs.t, lat)
+    C_ni = C_n_i(result.t[None], lat[:, None])
     err = np.concatenate([
-        np.einsum("kij,bkj->bki", C_ni, error_n),
+        np.einsum("bkij,bkj->bki", C_ni, error_n),
         np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
         np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
     sub = np.r_[PHI, EPS, NABLA]
     nees_t = nees(err, result.P[:, :, sub][:, :, :, sub])
     diverged, reason = divergence.apply(error_n[:, -1], result.sigma_n[:, -1],
                                         result.diverged, result.diverged_reason)
-    t_rel = inputs.t - inputs.t[0]
-    heading = convergence_time(t_rel, error_n[:, :, 2],
+    heading = convergence_time(result.t - result.t[0], error_n[:, :, 2],
                                experiment.heading_threshold_arcmin * arcmin)
     return FilterRun(filter=name, start=start, result=result, error_n=error_n,
                      euler_error=eul, nees=nees_t, diverged=diverged, reason=reason,
                      heading_convergence=heading)
+
+
+def run_filter(name: str, start: str, start_error: np.ndarray,
+               episodes: list[PreparedEpisode], experiment: Paper003Experiment,
+               tuning: FineTuning) -> FilterRun:
+    """One filter on all episodes from a starting misalignment phi E, N, U (rad): common
+    (3,) or per episode (B, 3)."""
+    inputs = stack_inputs([e.inputs for e in episodes])
+    filt = make_filter(name, rho=experiment.rho)
+    result = run_fine_alignment(filt, inputs, start_attitude(episodes, start_error), tuning,
+                                np.array([e.lat for e in episodes]),
+                                np.array([e.h for e in episodes]))
+    return analyse_run(name, start, result, episodes, experiment)
+
+
+def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:
+    """The per-episode metrics of episode b of a run (one row of the tidy table)."""
+    r = run.result
+    t = r.t
+    in_window = t >= t[-1] - rms_window - 1e-9
+    rms = np.sqrt(np.mean(run.error_n[b, in_window] ** 2, axis=0)) / arcmin
+    row = {}
+    for prefix, values in (("final", run.error_n[b, -1] / arcmin), ("rms", rms),
+                           ("final_sigma", r.sigma_n[b, -1] / arcmin)):
+        row.update({f"{prefix}_{a}_arcmin": float(v) for a, v in zip(AXES, values)})
+    row.update({f"final_{a}_arcmin": float(v) for a, v in
+                zip(("pitch", "roll", "heading"), run.euler_error[b, -1] / arcmin)})
+    row.update({
+        "heading_convergence_s": float(run.heading_convergence[b]),
+        "nees_mean": float(np.mean(run.nees[b, 1:])), "nees_final": float(run.nees[b, -1]),
+        "diverged": bool(run.diverged[b]), "diverged_reason": run.reason[b],
+        "diverged_time_s": float(r.diverged_time[b] - t[0]) if r.diverged[b] else None,
+        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0]})
+    return row
 
 
 def prepare_all(experiment: Paper003Experiment, seeds: list[int], out_dir: Path | None,

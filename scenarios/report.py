@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from models.units import arcmin
-from scenarios.paper003 import AXES, CampaignResult
+from scenarios.paper003 import AXES, CampaignResult, episode_metrics
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
@@ -51,24 +51,9 @@ def format_tables(result: CampaignResult) -> str:
 
 def tidy_rows(result: CampaignResult) -> list[dict]:
     """One row per (episode, filter, start)."""
-    rows = []
-    window = result.experiment.rms_window
-    for run in result.runs:
-        t = run.result.t
-        in_window = t >= t[-1] - window - 1e-9
-        rms = np.sqrt(np.mean(run.error_n[:, in_window] ** 2, axis=1)) / arcmin
-        final = run.error_n[:, -1] / arcmin
-        sigma = run.result.sigma_n[:, -1] / arcmin
-        euler = run.euler_error[:, -1] / arcmin
-        ms = run.result.seconds_per_epoch * 1e3 / len(result.seeds)
-        for b, seed in enumerate(result.seeds):
-            rows.append(dict(zip(TIDY_COLUMNS, [
-                seed, run.filter, run.start, *final[b], *rms[b], *sigma[b], *euler[b],
-                float(run.heading_convergence[b]), float(np.mean(run.nees[b, 1:])),
-                float(run.nees[b, -1]), bool(run.diverged[b]), run.reason[b],
-                float(run.result.diverged_time[b] - t[0]) if run.result.diverged[b] else "",
-                ms])))
-    return rows
+    return [{"seed": seed, "filter": run.filter, "start": run.start,
+             **episode_metrics(run, b, result.experiment.rms_window)}
+            for run in result.runs for b, seed in enumerate(result.seeds)]
 
 
 def write_outputs(result: CampaignResult, out_dir: str | Path | None,

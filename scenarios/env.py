@@ -1,0 +1,257 @@
+"""Gymnasium interface: one episode is one alignment run (coarse, then fine); each step
+is one filter epoch. The observation holds only what the filter knows; the action
+rescales the filter's noise tuning; the reward and ``info`` use the truth.
+
+Observation (float32, 16): normalised innovations e_i / sqrt(S_ii) (3, clipped to
++-10); log10 of the attitude and bias covariance diagonal relative to its initial value
+(9: phi, gyro drift, accelerometer bias; clipped to [-20, 5]); log10 of the current
+fading factors (3, zero where the filter has fewer; clipped to [-2, 3]); elapsed
+fraction of the fine alignment (1).
+
+Action (float32 in [-1, 1]): log-scale multipliers 10^(2 a) on the variances of the
+gyro white noise, the accelerometer white noise and the measurement noise, and, for
+fading-factor filters, 10^a on the fading-factor floor (tuned value 1). The zero action
+runs the filter exactly as tuned.
+
+Reward: minus the attitude error after the epoch,
+sqrt((phi_E / 1')^2 + (phi_N / 1')^2 + (phi_U / 10')^2), capped at 100: level errors
+count per arcminute, heading errors per 10 arcminutes.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import replace
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from estimators.adaptation import InnovationFading
+from estimators.filters import FILTERS, make_filter
+from estimators.inertial_fine import EPS, NABLA, PHI, InertialFineAlignment
+from estimators.metrics import misalignment
+from models.units import arcmin
+from scenarios.config import ConfigError
+from scenarios.paper003 import (Paper003Experiment, PreparedEpisode, analyse_run,
+                                episode_metrics, prepare_episode, start_attitude)
+from scenarios.simulate import episode_rngs, make_world
+
+OBS_SIZE = 16
+REWARD_SCALE = np.array([1.0, 1.0, 10.0]) * arcmin
+REWARD_CAP = 100.0
+
+
+class AlignmentEnv(gym.Env):
+    """Alignment of the scenario's IMU by one estimator (see the module docstring).
+
+    scenario: scenario name; estimator: filter name (``estimators.filters.FILTERS``);
+    episode_length: fine-alignment duration, s; epoch_length: filter epoch, s;
+    render_mode: None or "rgb_array"; video_path: with "rgb_array", write each
+    episode's frames to this MP4 file; mistuning: variance multipliers applied to the
+    filter's tuning before the agent acts ({"gyro_noise", "accel_noise", "measurement"}),
+    to build a deliberately mistuned filter; cache_episodes: number of simulated episodes
+    kept in memory by episode seed (repeated resets with the same seed skip MuJoCo).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(self, scenario: str = "ship-sway-rotary", estimator: str = "kf",
+                 episode_length: float = 600.0, epoch_length: float = 1.0,
+                 render_mode: str | None = None, video_path: str | None = None,
+                 mistuning: dict[str, float] | None = None, cache_episodes: int = 8,
+                 render_size: tuple[int, int] = (240, 320)) -> None:
+        if estimator not in FILTERS:
+            raise ConfigError(f"unknown filter {estimator!r}; known filters: "
+                              + ", ".join(sorted(FILTERS)))
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError(f"render_mode = {render_mode!r}; valid: None, 'rgb_array'")
+        if not (episode_length > 0 and epoch_length > 0 and episode_length >= epoch_length):
+            raise ConfigError("need episode_length >= epoch_length > 0 s, got "
+                              f"{episode_length}, {epoch_length}")
+        self.estimator, self.render_mode, self.video_path = estimator, render_mode, video_path
+        self.experiment = Paper003Experiment(scenario=scenario, fine_duration=episode_length,
+                                             filter_step=epoch_length)
+        self.config = self.experiment.scenario_config()
+        tuning = self.experiment.tuning(self.config)
+        factors = {"gyro_noise": 1.0, "accel_noise": 1.0, "measurement": 1.0,
+                   **(mistuning or {})}
+        unknown = set(factors) - {"gyro_noise", "accel_noise", "measurement"}
+        if unknown:
+            raise ConfigError(f"mistuning key {sorted(unknown)[0]!r}; valid: gyro_noise, "
+                              "accel_noise, measurement")
+        self.tuning = replace(
+            tuning,
+            gyro_noise_density=tuning.gyro_noise_density * np.sqrt(factors["gyro_noise"]),
+            accel_noise_density=tuning.accel_noise_density * np.sqrt(factors["accel_noise"]),
+            measurement_sigma=tuple(s * np.sqrt(factors["measurement"])
+                                    for s in tuning.measurement_sigma))
+        self._fading = issubclass(FILTERS[estimator].adaptation, InnovationFading)
+        self.action_space = spaces.Box(-1.0, 1.0, (4 if self._fading else 3,), np.float32)
+        low = np.concatenate([np.full(3, -10.0), np.full(9, -20.0), np.full(3, -2.0), [0.0]])
+        high = np.concatenate([np.full(3, 10.0), np.full(9, 5.0), np.full(3, 3.0), [1.0]])
+        self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32),
+                                            dtype=np.float32)
+        self._cache: OrderedDict[int, PreparedEpisode] = OrderedDict()
+        self._cache_size = cache_episodes
+        self._render_size = render_size
+        self._renderer = None
+        self._world = None
+        self._run: InertialFineAlignment | None = None
+        self._frames: list[np.ndarray] = []
+
+    # --- episode ------------------------------------------------------------------------
+    def _prepare(self, episode_seed: int) -> PreparedEpisode:
+        if episode_seed in self._cache:
+            self._cache.move_to_end(episode_seed)
+            return self._cache[episode_seed]
+        episode = prepare_episode(self.experiment, episode_seed, config=self.config)
+        if self._cache_size > 0:
+            self._cache[episode_seed] = episode
+            while len(self._cache) > self._cache_size:
+                self._cache.popitem(last=False)
+        return episode
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Options: "episode_seed" (int, else drawn from np_random), "start_error":
+        "coarse" (the episode's own coarse alignment, default), "random" (drawn from the
+        filter's initial covariance) or phi E, N, U in rad (3,)."""
+        super().reset(seed=seed)
+        options = options or {}
+        episode_seed = int(options.get("episode_seed",
+                                       self.np_random.integers(0, 2 ** 31 - 1)))
+        self._episode = self._prepare(episode_seed)
+        start = options.get("start_error", "coarse")
+        if isinstance(start, str):
+            if start == "coarse":
+                start = self._episode.coarse_error
+            elif start == "random":
+                start = self.np_random.standard_normal(3) * np.asarray(
+                    self.tuning.attitude_sigma)
+            else:
+                raise ConfigError(f"start_error = {start!r}; valid: 'coarse', 'random' or "
+                                  "3 angles in rad")
+        self._start_error = np.asarray(start, dtype=float)
+        filt = make_filter(self.estimator, rho=self.experiment.rho)
+        self._filter = filt
+        self._run = InertialFineAlignment(filt, self._episode.inputs,
+                                          start_attitude([self._episode], self._start_error),
+                                          self.tuning, self._episode.lat, self._episode.h)
+        self._episode_seed = episode_seed
+        self._world = None
+        self._frames = []
+        if self.render_mode == "rgb_array" and self.video_path:
+            self._frames.append(self.render())
+        return self._observation(), {"episode_seed": episode_seed,
+                                     "start_error_arcmin": self._start_error / arcmin}
+
+    def step(self, action):
+        if self._run is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        if self._fading:
+            self._filter.adaptation.floor = 10.0 ** a[3]
+            self._filter.adaptation.cap = max(self._filter.adaptation.cap,
+                                              self._filter.adaptation.floor)
+        run = self._run
+        run.step(q_scale=(10.0 ** (2 * a[0]), 10.0 ** (2 * a[1])), r_scale=10.0 ** (2 * a[2]))
+        k = run.k
+        error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k])
+        reward = -min(float(np.linalg.norm(error / REWARD_SCALE)), REWARD_CAP)
+        diverged = bool(run.filt.health.diverged[0])
+        terminated = run.done or diverged
+        info = {"error_arcmin": error / arcmin, "time_s": float(run.inputs.t[k] -
+                                                                run.inputs.t[0]),
+                "diverged": diverged}
+        if terminated:
+            result = run.result()
+            analysed = analyse_run(self.estimator, "env", result, [self._episode],
+                                   self.experiment)
+            info["metrics"] = episode_metrics(analysed, 0, self.experiment.rms_window)
+        if self.render_mode == "rgb_array" and self.video_path:
+            self._frames.append(self.render())
+            if terminated:
+                self._write_video()
+        return self._observation(), reward, terminated, False, info
+
+    def _observation(self) -> np.ndarray:
+        run, filt = self._run, self._filter
+        obs = np.zeros(OBS_SIZE)
+        if filt.innovation is not None:
+            obs[0:3] = filt.innovation[0] / np.sqrt(np.diagonal(filt.S[0]))
+        diag = np.diagonal(filt.P[0])
+        diag0 = np.diagonal(run.P[0, 0])
+        sub = np.r_[PHI, EPS, NABLA]
+        with np.errstate(divide="ignore"):
+            obs[3:12] = np.log10(np.maximum(diag[sub], 1e-300) / diag0[sub])
+        if run.k > 0 and run.factors.shape[-1]:
+            f = run.factors[0, run.k - 1]
+            obs[12:12 + f.size] = np.log10(np.maximum(f, 1e-3))
+        obs[15] = run.k / run.epochs
+        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(
+            np.float32)
+
+    # --- rendering ----------------------------------------------------------------------
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        import mujoco
+
+        if self._world is None:
+            seed = getattr(self, "_episode_seed", 0)
+            self._world = make_world(self.config, episode_rngs(seed)["motion"])
+        world = self._world
+        if self._renderer is None:
+            height, width = self._render_size
+            self._renderer = mujoco.Renderer(world.model, height, width)
+            self._camera = mujoco.MjvCamera()
+            self._camera.distance, self._camera.elevation = 160.0, -25.0
+            self._camera.azimuth = 120.0
+        t = 0.0 if self._run is None else float(self._run.inputs.t[self._run.k])
+        qpos, qvel, _ = world.joint_state(np.array([t]))
+        world.data.qpos[:], world.data.qvel[:] = qpos[0], qvel[0]
+        mujoco.mj_forward(world.model, world.data)
+        self._camera.lookat[:] = world.data.xpos[world.model.body("carrier").id]
+        self._renderer.update_scene(world.data, self._camera)
+        return self._renderer.render().copy()
+
+    def _write_video(self) -> None:
+        import imageio.v2 as imageio
+
+        path = Path(self.video_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        imageio.mimwrite(path, self._frames, fps=self.metadata["render_fps"], macro_block_size=8)
+        self._frames = []
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_renderer"] = None
+        state["_world"] = None
+        return state
+
+
+def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0,
+             start_error: np.ndarray | str = "coarse", **env_kwargs) -> list[dict]:
+    """Run the estimator passively (zero action) on the campaign's episode seeds and return
+    the per-episode metrics table (the campaign's rows for the same seeds and start)."""
+    from scenarios.paper003 import episode_seeds
+
+    env = gym.make(env_id, estimator=estimator, **env_kwargs)
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    rows = []
+    try:
+        for s in episode_seeds(seed, episodes):
+            env.reset(seed=s, options={"episode_seed": s, "start_error": start_error})
+            while True:
+                _, _, terminated, truncated, info = env.step(zero)
+                if terminated or truncated:
+                    break
+            rows.append({"seed": s, "filter": estimator, **info["metrics"]})
+    finally:
+        env.close()
+    return rows

@@ -1,0 +1,131 @@
+"""The gymnasium interface, for every registered scenario id."""
+import pickle
+import sys
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import scenarios
+from scenarios import ENV_IDS
+from scenarios.paper003 import run_campaign
+
+SHORT = {"episode_length": 20.0}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_check_env(env_id):
+    env = gym.make(env_id, **SHORT)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=True)
+    # Accepted: none. Any warning from the checker is a failure.
+    assert not [w for w in caught if "gymnasium" in str(w.filename)], [str(w.message)
+                                                                       for w in caught]
+    env.close()
+
+
+def rollout(env_id, seed, steps=12, **kwargs):
+    env = gym.make(env_id, estimator="imakf", **SHORT, **kwargs)
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    out = [obs]
+    for _ in range(steps):
+        obs, reward, terminated, _, _ = env.step(env.action_space.sample())
+        out += [obs, np.float32(reward)]
+        if terminated:
+            break
+    env.close()
+    return out
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_rollout(env_id):
+    a, b = rollout(env_id, 5), rollout(env_id, 5)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+    c = rollout(env_id, 6)
+    assert not np.array_equal(a[1], c[1])
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_vector_envs(env_id, mode):
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **SHORT)
+    obs, _ = envs.reset(seed=1)
+    assert obs.shape == (2, 16)
+    for _ in range(3):
+        obs, reward, terminated, truncated, _ = envs.step(envs.action_space.sample())
+    assert reward.shape == (2,) and np.all(np.isfinite(reward))
+    envs.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_pickle_and_close_twice(env_id):
+    env = gym.make(env_id, **SHORT)
+    env.reset(seed=2)
+    env.step(np.zeros(env.action_space.shape, np.float32))
+    clone = pickle.loads(pickle.dumps(env))
+    a = env.step(np.zeros(env.action_space.shape, np.float32))
+    b = clone.step(np.zeros(env.action_space.shape, np.float32))
+    np.testing.assert_array_equal(a[0], b[0])
+    assert a[1] == b[1]
+    env.close()
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_rgb_array_frames_and_video(env_id, tmp_path):
+    video = tmp_path / "episode.mp4"
+    env = gym.make(env_id, render_mode="rgb_array", video_path=str(video), episode_length=5.0)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5.0  # not blank
+    while not env.step(np.zeros(env.action_space.shape, np.float32))[2]:
+        pass
+    later = env.render()
+    assert not np.array_equal(frame, later)  # the ship moved
+    env.close()
+    assert video.stat().st_size > 1000
+
+
+def test_observation_has_no_truth_and_info_has_it():
+    env = gym.make(ENV_IDS[0], **SHORT)
+    obs, _ = env.reset(seed=4)
+    assert env.observation_space.contains(obs)
+    obs, reward, terminated, _, info = env.step(np.zeros(3, np.float32))
+    assert "error_arcmin" in info and reward <= 0
+    err = info["error_arcmin"]
+    expected = -min(np.linalg.norm(err / np.array([1.0, 1.0, 10.0])), 100.0)
+    assert reward == pytest.approx(expected)
+    while not terminated:
+        obs, reward, terminated, _, info = env.step(np.zeros(3, np.float32))
+    assert {"final_phi_U_arcmin", "nees_mean", "diverged"} <= set(info["metrics"])
+
+
+def test_evaluate_equals_campaign():
+    result = run_campaign(episodes=2, seed=3, filters=["sakf"], progress=False, workers=1,
+                          experiment=scenarios.paper003.Paper003Experiment(fine_duration=60.0))
+    rows = scenarios.evaluate(ENV_IDS[0], "sakf", episodes=2, seed=3,
+                              start_error=result.start_errors["max"], episode_length=60.0)
+    from scenarios.report import tidy_rows
+    campaign = [r for r in tidy_rows(result) if r["start"] == "max"]
+    assert [r["seed"] for r in rows] == [r["seed"] for r in campaign]
+    for env_row, camp_row in zip(rows, campaign):
+        for key in ("final_phi_E_arcmin", "final_phi_N_arcmin", "final_phi_U_arcmin",
+                    "rms_phi_U_arcmin", "nees_final", "heading_convergence_s", "diverged"):
+            assert env_row[key] == pytest.approx(camp_row[key], rel=1e-12, abs=1e-12), key
+
+
+def test_agent_improves_a_mistuned_filter():
+    sys.path.insert(0, str(Path(__file__).parents[1] / "examples"))
+    import tune_agent
+    out = tune_agent.main(episode_length=60.0, train_seeds=(11, 12), test_seeds=(21, 22),
+                          iterations=3, population=6)
+    # Measurably better than the zero action on unseen episodes (reward is <= 0).
+    assert out["agent_test"] > 0.8 * out["zero_test"]
+    assert out["agent_test"] - out["zero_test"] > 1.0
