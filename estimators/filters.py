@@ -7,34 +7,15 @@ diverged with the time and the reason and frozen, while the rest of the batch go
 """
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from estimators.rules import (CubatureRule, IntegrationRule, LinearRule,
+                              SparseGridGaussHermiteRule, UnscentedRule)
 from estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors, InnovationFading,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
-
-
-class IntegrationRule(ABC):
-    """How the filter propagates a Gaussian through the process model."""
-
-    name: str
-
-    @abstractmethod
-    def predict(self, x: np.ndarray, P: np.ndarray, Phi: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted mean (B, n) and Phi P Phi^T (B, n, n), without the process noise."""
-
-
-class LinearRule(IntegrationRule):
-    """Exact propagation through a linear(ised) model: the KF."""
-
-    name = "linear"
-
-    def predict(self, x, P, Phi):
-        return (np.einsum("bij,bj->bi", Phi, x), Phi @ P @ np.swapaxes(Phi, -1, -2))
 
 
 def _cholesky_ok(A: np.ndarray) -> np.ndarray:
@@ -167,6 +148,13 @@ FILTERS: dict[str, FilterEntry] = {
                           "MAKF with factors along local E, N, U", "local-level"),
     "imakf-n": FilterEntry(LinearRule, ImprovedMultipleFadingFactors,
                            "IMAKF with factors along local E, N, U", "local-level"),
+    "ukf": FilterEntry(UnscentedRule, NoAdaptation,
+                       "unscented KF (alpha 1, beta 2, kappa 0)"),
+    "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
+    "sghkf-2": FilterEntry(lambda: SparseGridGaussHermiteRule(2), NoAdaptation,
+                           "sparse-grid Gauss-Hermite KF, level 2"),
+    "sghkf-3": FilterEntry(lambda: SparseGridGaussHermiteRule(3), NoAdaptation,
+                           "sparse-grid Gauss-Hermite KF, level 3"),
 }
 
 
