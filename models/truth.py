@@ -6,7 +6,7 @@ IMU's position (not the plane's origin: 1 km away the two differ by ~30 arcsec).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -33,12 +33,33 @@ class NavigationTruth:
     q_b_n: np.ndarray
     q_s_n: np.ndarray
     gimbal_angles: np.ndarray
-    omega_is_s: np.ndarray
-    f_s: np.ndarray
+    omega_is_s: np.ndarray | None = None
+    f_s: np.ndarray | None = None
 
     def take(self, index: np.ndarray | slice) -> "NavigationTruth":
         """Truth at a subset of its samples."""
-        return NavigationTruth(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+        return NavigationTruth(**{f.name: None if getattr(self, f.name) is None
+                                  else getattr(self, f.name)[index] for f in fields(self)})
+
+
+def plane_truth(plane: TangentPlane, t: np.ndarray, r_t: np.ndarray, v_t: np.ndarray,
+                q_b_t: np.ndarray, q_s_t: np.ndarray, gimbal_angles: np.ndarray
+                ) -> NavigationTruth:
+    """Geodetic position, ENU velocity and attitudes (n at the IMU) of plane-frame IMU
+    position r_t (N, 3) m, velocity v_t (N, 3) m/s and attitudes q_b_t, q_s_t (N, 4)."""
+    lat, lon, h = plane.to_geodetic(r_t)
+    C_t_n = plane.C_t_n(lat, lon)
+    q_t_n = dcm_to_quat(C_t_n)
+    return NavigationTruth(
+        t=t, lat=lat, lon=lon, h=h, v_n=np.einsum("...ij,...j->...i", C_t_n, v_t),
+        q_b_n=quat_normalize(quat_mul(q_t_n, q_b_t)),
+        q_s_n=quat_normalize(quat_mul(q_t_n, q_s_t)), gimbal_angles=gimbal_angles)
+
+
+def gravity_t(plane: TangentPlane, r_t: np.ndarray) -> np.ndarray:
+    """True (normal) gravity at plane positions r_t (N, 3), in plane axes, m/s^2."""
+    lat, lon, h = plane.to_geodetic(r_t)
+    return np.einsum("...ji,...j->...i", plane.C_t_n(lat, lon), gravity_n(lat, h))
 
 
 def navigation_truth(samples: WorldSamples, plane: TangentPlane) -> NavigationTruth:
@@ -48,19 +69,11 @@ def navigation_truth(samples: WorldSamples, plane: TangentPlane) -> NavigationTr
     f = a_t + 2 omega_ie x v_t - g(position), with g the WGS-84 normal gravity (which
     includes the centrifugal term) along -U at the IMU.
     """
-    lat, lon, h = plane.to_geodetic(samples.r_t)
-    C_t_n = plane.C_t_n(lat, lon)
-    q_t_n = dcm_to_quat(C_t_n)
-    v_n = np.einsum("...ij,...j->...i", C_t_n, samples.v_t)
+    truth = plane_truth(plane, samples.t, samples.r_t, samples.v_t, samples.q_b_t,
+                        samples.q_s_t, samples.gimbal_angles)
     q_t_s = quat_conj(samples.q_s_t)
     omega_ie_t = plane.omega_ie_t
     omega_is_s = samples.omega_ts_s + quat_rotate(q_t_s, np.broadcast_to(omega_ie_t,
                                                                          samples.v_t.shape))
-    g_t = np.einsum("...ji,...j->...i", C_t_n, gravity_n(lat, h))
-    f_t = samples.a_t + 2.0 * cross(omega_ie_t, samples.v_t) - g_t
-    return NavigationTruth(
-        t=samples.t, lat=lat, lon=lon, h=h, v_n=v_n,
-        q_b_n=quat_normalize(quat_mul(q_t_n, samples.q_b_t)),
-        q_s_n=quat_normalize(quat_mul(q_t_n, samples.q_s_t)),
-        gimbal_angles=samples.gimbal_angles,
-        omega_is_s=omega_is_s, f_s=quat_rotate(q_t_s, f_t))
+    f_t = samples.a_t + 2.0 * cross(omega_ie_t, samples.v_t) - gravity_t(plane, samples.r_t)
+    return replace(truth, omega_is_s=omega_is_s, f_s=quat_rotate(q_t_s, f_t))

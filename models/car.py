@@ -1,0 +1,368 @@
+"""A MuJoCo car driven around ring and figure-8 tracks (papers 000 and 001).
+
+The car: a chassis (body "carrier", free joint) on four slide-joint suspensions; front
+wheels steered by position servos about their kingpins (Ackermann angles from the
+controller); rear wheels driven through a fixed-tendon differential by one velocity
+servo; ellipsoid tyres with friction on a ground plane, or on a heightfield with road
+roughness. A pure-pursuit controller (6 m look-ahead) with a speed ramp follows the
+track; the car starts at the plane origin heading north.
+
+Physics runs at 2 ms with the implicitfast integrator. For it MuJoCo updates the
+velocity first and then moves the free joint with the new velocity: over step k the
+body rotates at the constant body rate omega_{k+1} and its origin moves at the constant
+world velocity v_{k+1}. ``CarWorld.run`` records exactly these, so the IMU increments
+can be made consistent with the discrete motion to rounding (``discrete_imu``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from models.attitude import cross, quat_to_dcm, skew
+from models.world import IMU_SENSORS_MJCF
+
+G_LATERAL_MAX = 0.4 * 9.81
+"""Largest steady lateral acceleration the controller is allowed to ask, m/s^2."""
+
+
+@dataclass(frozen=True)
+class CarParams:
+    """Car geometry (m), masses (kg), suspension and tyres. imu_offset_b: IMU site from the
+    chassis origin in the body frame (R, F, U), m."""
+
+    wheelbase: float = 2.7
+    track: float = 1.6
+    wheel_radius: float = 0.33
+    wheel_width: float = 0.22
+    chassis_mass: float = 1400.0
+    wheel_mass: float = 20.0
+    suspension_stiffness: float = 7.0e4
+    suspension_damping: float = 4.0e3
+    tyre_friction: float = 1.0
+    max_steer: float = math.radians(35.0)
+    imu_offset_b: tuple[float, float, float] = (0.0, 0.3, 0.2)
+    gps_antenna_b: tuple[float, float, float] = (0.0, -0.5, 1.2)
+    roughness_rms: float = 0.0
+    """Road roughness (heightfield) RMS height, m; 0 for a smooth plane."""
+
+
+def car_mjcf(p: CarParams, roughness_seed: int = 0, extent: float = 600.0) -> tuple[str, dict]:
+    """MJCF of the car and the ground; returns (xml, assets) (the heightfield data)."""
+    hw, hl = p.track / 2, p.wheelbase / 2
+    z_wheel = -0.25  # wheel centre below the chassis origin at rest
+    spring_ref = 0.0
+    wheels = []
+    for name, x, y, steer in (("fl", -hw, hl, True), ("fr", hw, hl, True),
+                              ("rl", -hw, -hl, False), ("rr", hw, -hl, False)):
+        steer_joint = (f'<joint name="{name}_steer" type="hinge" axis="0 0 1" '
+                       f'range="{-p.max_steer:.5f} {p.max_steer:.5f}" damping="50"/>'
+                       if steer else "")
+        wheels.append(f"""
+      <body name="{name}_susp" pos="{x:g} {y:g} {z_wheel:g}">
+        <joint name="{name}_susp" type="slide" axis="0 0 1" range="-0.12 0.12"
+               stiffness="{p.suspension_stiffness:g}" springref="{spring_ref:g}"
+               damping="{p.suspension_damping:g}"/>
+        <geom type="sphere" size="0.05" mass="15" contype="0" conaffinity="0"/>
+        <body name="{name}_hub">
+          {steer_joint}
+          <geom type="sphere" size="0.04" mass="5" contype="0" conaffinity="0"/>
+          <body name="{name}_wheel">
+            <joint name="{name}_spin" type="hinge" axis="-1 0 0" damping="0.5"/>
+            <geom name="{name}_tyre" type="ellipsoid"
+                  size="{p.wheel_width / 2:g} {p.wheel_radius:g} {p.wheel_radius:g}"
+                  mass="{p.wheel_mass:g}" friction="{p.tyre_friction:g} 0.02 0.001"
+                  condim="3" rgba=".1 .1 .1 1"/>
+          </body>
+        </body>
+      </body>""")
+    # Ground: a plane, or a heightfield whose RMS height is the road roughness.
+    assets = {}
+    if p.roughness_rms > 0.0:
+        from scipy.ndimage import gaussian_filter
+        cell = 0.2  # m; correlation length ~0.4 m: wheel-hop band at road speeds
+        n = int(math.ceil(2 * extent / cell)) + 1
+        rng = np.random.default_rng(roughness_seed)
+        f = gaussian_filter(rng.standard_normal((n, n)), sigma=2.0, mode="wrap")
+        heights = p.roughness_rms * (f - f.mean()) / f.std()
+        low, high = float(heights.min()), float(heights.max())
+        ground = (f'<geom name="ground" type="hfield" hfield="road" pos="0 0 {low:.6f}" '
+                  f'friction="{p.tyre_friction:g} 0.02 0.001" rgba=".35 .35 .35 1"/>')
+        hfield = (f'<hfield name="road" nrow="{n}" ncol="{n}" '
+                  f'size="{extent:g} {extent:g} {high - low:.6f} 0.1"/>')
+        assets["road"] = ((heights - low) / (high - low)).astype(np.float32)
+    else:
+        ground = (f'<geom name="ground" type="plane" size="{extent:g} {extent:g} 1" '
+                  f'friction="{p.tyre_friction:g} 0.02 0.001" rgba=".35 .35 .35 1"/>')
+        hfield = ""
+    ix, iy, iz = p.imu_offset_b
+    xml = f"""
+<mujoco model="car">
+  <option timestep="0.002" integrator="implicitfast" iterations="20" ls_iterations="10"/>
+  <visual><global offwidth="640" offheight="480"/></visual>
+  <asset>{hfield}</asset>
+  <worldbody>
+    <light pos="0 0 100" dir="0 0 -1" directional="true"/>
+    {ground}
+    <body name="carrier" pos="0 0 {p.wheel_radius - z_wheel:g}">
+      <freejoint name="chassis"/>
+      <geom name="chassis" type="box" size="0.85 2.2 0.3" mass="{p.chassis_mass:g}"
+            rgba=".7 .1 .1 1" contype="0" conaffinity="0"/>
+      <site name="imu" pos="{ix:g} {iy:g} {iz:g}" size="0.05"/>
+      {''.join(wheels)}
+    </body>
+  </worldbody>
+  <tendon>
+    <fixed name="rear_diff">
+      <joint joint="rl_spin" coef="0.5"/>
+      <joint joint="rr_spin" coef="0.5"/>
+    </fixed>
+  </tendon>
+  <actuator>
+    <position name="steer_fl" joint="fl_steer" kp="4000" ctrlrange="{-p.max_steer:.5f} {p.max_steer:.5f}"/>
+    <position name="steer_fr" joint="fr_steer" kp="4000" ctrlrange="{-p.max_steer:.5f} {p.max_steer:.5f}"/>
+    <velocity name="drive" tendon="rear_diff" kv="2000" forcerange="-4000 4000"/>
+  </actuator>
+{IMU_SENSORS_MJCF}
+</mujoco>
+"""
+    return xml, assets
+
+
+# --- tracks ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Track:
+    """A closed path in the plane (E, N), m, starting at the origin heading north.
+    points (N, 2); s (N,) cumulative arc length; length: total, m."""
+
+    points: np.ndarray
+    s: np.ndarray
+    length: float
+
+    @classmethod
+    def from_points(cls, points: np.ndarray) -> "Track":
+        seg = np.linalg.norm(np.diff(points, axis=0, append=points[:1]), axis=1)
+        return cls(points, np.concatenate([[0.0], np.cumsum(seg[:-1])]), float(seg.sum()))
+
+    def min_radius(self) -> float:
+        """Smallest radius of curvature along the track, m."""
+        d1 = np.gradient(self.points, self.s, axis=0)
+        d2 = np.gradient(d1, self.s, axis=0)
+        kappa = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(
+            np.linalg.norm(d1, axis=1) ** 3, 1e-12)
+        return float(1.0 / max(np.percentile(kappa, 99.5), 1e-9))
+
+
+def ring_track(radius: float, clockwise: bool = True, n: int = 4000) -> Track:
+    """Circle through the origin, tangent to north there."""
+    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    side = 1.0 if clockwise else -1.0
+    pts = np.stack([side * radius * (1 - np.cos(a)), radius * np.sin(a)], -1)
+    return Track.from_points(pts)
+
+
+def figure8_track(size: float, n: int = 8000) -> Track:
+    """Lemniscate of Bernoulli with half-width `size` (m), rotated so that it crosses the
+    origin heading north; it turns both ways."""
+    t = np.linspace(np.pi / 2, np.pi / 2 + 2 * np.pi, n, endpoint=False)
+    den = 1 + np.sin(t) ** 2
+    pts = np.stack([size * np.cos(t) / den, size * np.sin(t) * np.cos(t) / den], -1)
+    d = pts[1] - pts[0]
+    angle = np.arctan2(d[0], d[1])  # rotate the start tangent onto north
+    c, s = np.cos(angle), np.sin(angle)
+    return Track.from_points(pts @ np.array([[c, -s], [s, c]]).T)
+
+
+# --- driver -------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class DriveProfile:
+    """Speed schedule: still until start_time (s), ramp at accel (m/s^2) to speed (m/s),
+    drive until stop_time (s), then brake to rest."""
+
+    speed: float
+    start_time: float = 0.0
+    stop_time: float = math.inf
+    accel: float = 1.5
+
+    def target_speed(self, t: float) -> float:
+        if t < self.start_time:
+            return 0.0
+        if t >= self.stop_time:
+            return max(0.0, self.speed - 2.0 * self.accel * (t - self.stop_time))
+        return min(self.speed, self.accel * (t - self.start_time))
+
+
+class PurePursuit:
+    """Pure pursuit steering with look-ahead (m) and Ackermann wheel angles."""
+
+    def __init__(self, track: Track, params: CarParams, lookahead: float = 6.0) -> None:
+        self.track, self.p, self.lookahead = track, params, lookahead
+        self._index = 0
+
+    def steer(self, pos: np.ndarray, yaw: float) -> tuple[float, float, float]:
+        """(left, right, cross-track error) for the rear-axle position (E, N) and yaw
+        (rad, CCW from north)."""
+        pts, n = self.track.points, len(self.track.points)
+        window = (self._index + np.arange(-20, 400)) % n
+        d = np.linalg.norm(pts[window] - pos, axis=1)
+        self._index = int(window[np.argmin(d)])
+        s_target = (self.track.s[self._index] + self.lookahead) % self.track.length
+        target = pts[np.searchsorted(self.track.s, s_target) % n]
+        forward = np.array([-np.sin(yaw), np.cos(yaw)])
+        right = np.array([np.cos(yaw), np.sin(yaw)])
+        rel = target - pos
+        alpha = math.atan2(rel @ right, rel @ forward)  # positive: target to the right
+        delta = math.atan(2.0 * self.p.wheelbase * math.sin(alpha) / self.lookahead)
+        delta = float(np.clip(delta, -self.p.max_steer, self.p.max_steer))
+        if abs(delta) < 1e-6:
+            return 0.0, 0.0, float(d.min())
+        R = self.p.wheelbase / math.tan(abs(delta))
+        inner = math.atan(self.p.wheelbase / (R - self.p.track / 2))
+        outer = math.atan(self.p.wheelbase / (R + self.p.track / 2))
+        # A right turn (delta > 0) is a negative rotation about up.
+        if delta > 0:
+            return -outer, -inner, float(d.min())
+        return inner, outer, float(d.min())
+
+
+# --- the world ------------------------------------------------------------------------------
+
+@dataclass
+class CarRun:
+    """Recorded discrete motion at the physics steps.
+
+    t (n+1,) s; pos (n+1, 3) chassis origin in the plane; quat (n+1, 4) chassis to
+    plane; vel (n+2, 3) world velocity of the chassis origin over each step (vel[k] moves
+    the car from t_{k-1} to t_k; vel[0] is the initial state); omega (n+2, 3) body rate,
+    same indexing; wheel_angles (n+1, 4) rad (fl, fr, rl, rr, unwrapped);
+    cross_track (n+1,) m.
+    """
+
+    dt: float
+    t: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    vel: np.ndarray
+    omega: np.ndarray
+    wheel_angles: np.ndarray
+    cross_track: np.ndarray
+    params: CarParams = field(default_factory=CarParams)
+
+
+class CarWorld:
+    """The car and its driver in MuJoCo."""
+
+    def __init__(self, params: CarParams, track: Track, profile: DriveProfile,
+                 roughness_seed: int = 0, control_period: int = 10) -> None:
+        self.params, self.track, self.profile = params, track, profile
+        reach = np.abs(track.points).max() + 30.0
+        xml, assets = car_mjcf(params, roughness_seed, extent=float(reach))
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        if "road" in assets:
+            self.model.hfield_data[:] = assets["road"].ravel()
+        self.data = mujoco.MjData(self.model)
+        self.control_period = control_period
+        m = self.model
+        self._spin_qpos = [m.joint(f"{w}_spin").qposadr[0] for w in ("fl", "fr", "rl", "rr")]
+        self._settle()
+
+    def _settle(self, seconds: float = 2.0) -> None:
+        """Let the suspension settle at rest before time zero (brakes on)."""
+        m, d = self.model, self.data
+        for _ in range(int(seconds / m.opt.timestep)):
+            d.ctrl[:] = 0.0
+            mujoco.mj_step(m, d)
+        d.qvel[:] = 0.0
+        d.time = 0.0
+        # Re-centre at the origin heading north after settling.
+        d.qpos[0:2] = 0.0
+        mujoco.mj_forward(m, d)
+
+    def run(self, duration: float) -> CarRun:
+        """Drive for duration (s), recording every physics step."""
+        m, d, p = self.model, self.data, self.params
+        dt = m.opt.timestep
+        n = int(round(duration / dt))
+        pos = np.empty((n + 1, 3)); quat = np.empty((n + 1, 4))
+        vel = np.empty((n + 2, 3)); omega = np.empty((n + 2, 3))
+        wheels = np.empty((n + 1, 4)); xtrack = np.empty(n + 1)
+        driver = PurePursuit(self.track, p)
+        qpos, qvel = d.qpos, d.qvel
+        spin = self._spin_qpos
+        rear_offset = np.array([0.0, -p.wheelbase / 2])
+        left = right = 0.0
+        xt = 0.0
+        for k in range(n + 1):
+            pos[k] = qpos[0:3]; quat[k] = qpos[3:7]
+            vel[k] = qvel[0:3]; omega[k] = qvel[3:6]
+            wheels[k] = qpos[spin]
+            if k % self.control_period == 0:
+                C = quat_to_dcm(qpos[3:7])
+                yaw = math.atan2(-C[0, 1], C[1, 1])
+                rear = qpos[0:2] + C[:2, :2] @ rear_offset
+                left, right, xt = driver.steer(rear, yaw)
+                d.ctrl[0], d.ctrl[1] = left, right
+                d.ctrl[2] = self.profile.target_speed(k * dt) / p.wheel_radius
+            xtrack[k] = xt
+            mujoco.mj_step(m, d)
+        vel[n + 1] = qvel[0:3]; omega[n + 1] = qvel[3:6]
+        return CarRun(dt=dt, t=np.arange(n + 1) * dt, pos=pos, quat=quat, vel=vel,
+                      omega=omega, wheel_angles=np.unwrap(wheels, axis=0), cross_track=xtrack,
+                      params=p)
+
+
+def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
+    """E = integral_0^dt exp(-[omega x] tau) dtau (..., 3, 3) for a constant rate (..., 3)."""
+    w = np.linalg.norm(omega, axis=-1)[..., None, None]
+    K = skew(omega)
+    th = w * dt
+    small = w < 1e-6
+    safe = np.where(small, 1.0, w)
+    a = np.where(small, dt * dt / 2 - w * w * dt ** 4 / 24, (1 - np.cos(th)) / safe ** 2)
+    b = np.where(small, dt ** 3 / 6 - w * w * dt ** 5 / 120, (dt - np.sin(th) / safe) / safe ** 2)
+    return dt * np.eye(3) - a * K + b * (K @ K)
+
+
+def discrete_imu(run: CarRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """IMU increments per physics step, consistent with the recorded discrete motion.
+
+    The IMU is fixed to the chassis at r = imu_offset_b (sensor = body axes). Over step k
+    MuJoCo turns the chassis at the constant body rate omega = omega[k+1] (exact here).
+    Its origin's velocity changes from vel[k] to vel[k+1]; MuJoCo applies that change at
+    once, which a strapdown (continuous motion) would integrate in the wrong frame by
+    1/2 omega x a dt (~0.1 mm/s per s in a 0.5 g turn). The truth therefore spreads it
+    as a constant acceleration a_k over the step: the origin's path then differs from
+    MuJoCo's positions by -(vel[k] - vel[0]) dt/2 (< 2 cm at 60 km/h), which the truth
+    positions include. Per step, in the sensor frame:
+    dtheta = omega dt + E R_k^T omega_ie;
+    dv = omega x (omega x r) dt + E R_k^T (a_k + 2 omega_ie x v_site - g)
+         + (omega[k+2] - omega[k+1]) x r   (the rate change at the step's end),
+    with E the rotation integral (``rotation_integral``) and g the true gravity in the
+    plane at the step (gravity_t (n, 3)).
+    Returns dtheta (n, 3), dv (n, 3), and the IMU's position (n+1, 3) and velocity
+    (n+1, 3) in the plane at the sample times.
+    """
+    r = np.asarray(run.params.imu_offset_b)
+    dt = run.dt
+    R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) chassis to plane at t_k
+    w = run.omega[1:-1]                        # (n, 3) rate over step k
+    v0, v1 = run.vel[:-2], run.vel[1:-1]       # origin velocity at the step's start/end
+    accel = (v1 - v0) / dt
+    E = rotation_integral(w, dt)               # (n, 3, 3)
+    Rt = np.swapaxes(R[:-1], -1, -2)
+    dtheta = w * dt + np.einsum("nij,nj->ni", E @ Rt, np.broadcast_to(omega_ie_t, w.shape))
+    # Site velocity in the plane at mid-step (Coriolis term, second order in dt).
+    R_mid = R[:-1] @ (np.eye(3) + 0.5 * dt * skew(w))
+    v_site_mid = 0.5 * (v0 + v1) + np.einsum("nij,nj->ni", R_mid, cross(w, r))
+    force_t = accel + 2.0 * cross(omega_ie_t, v_site_mid) - gravity_t
+    dv = cross(w, cross(w, r)) * dt + np.einsum("nij,nj->ni", E @ Rt, force_t)
+    dv += cross(run.omega[2:] - w, r)
+    origin = run.pos - (run.vel[:-1] - run.vel[0]) * dt / 2.0
+    site = origin + np.einsum("nij,j->ni", R, r)
+    v_site = run.vel[:-1] + np.einsum("nij,nj->ni", R, cross(run.omega[1:], r))
+    return dtheta, dv, site, v_site
