@@ -366,3 +366,59 @@ def discrete_imu(run: CarRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
     site = origin + np.einsum("nij,j->ni", R, r)
     v_site = run.vel[:-1] + np.einsum("nij,nj->ni", R, cross(run.omega[1:], r))
     return dtheta, dv, site, v_site
+
+
+@dataclass(frozen=True)
+class VehicleMotion:
+    """What the car does: track "ring" (radius = circle radius, m) or "figure8"
+    (radius = half-width of the lemniscate, m); speed, m/s; still until start_time, s;
+    brake at stop_time, s; accel, m/s^2; road roughness RMS, m; IMU and GPS-antenna
+    offsets from the chassis origin (R, F, U), m."""
+
+    track: str = "ring"
+    radius: float = 100.0
+    speed: float = 8.0
+    start_time: float = 0.0
+    stop_time: float = math.inf
+    accel: float = 1.5
+    roughness_rms: float = 0.0
+    imu_offset_b: tuple[float, float, float] = (0.0, 0.3, 0.2)
+    gps_antenna_b: tuple[float, float, float] = (0.0, -0.5, 1.2)
+
+    def make_track(self) -> Track:
+        if self.track == "ring":
+            return ring_track(self.radius)
+        if self.track == "figure8":
+            return figure8_track(self.radius)
+        raise ValueError(f"motion.track = {self.track!r}; valid choices: figure8, ring")
+
+    def car_params(self) -> CarParams:
+        return CarParams(imu_offset_b=self.imu_offset_b, gps_antenna_b=self.gps_antenna_b,
+                         roughness_rms=self.roughness_rms)
+
+    def profile(self) -> DriveProfile:
+        return DriveProfile(speed=self.speed, start_time=self.start_time,
+                            stop_time=self.stop_time, accel=self.accel)
+
+    def check(self) -> None:
+        """Raise ValueError naming the field if the car cannot drive this."""
+        if self.track not in ("ring", "figure8"):
+            raise ValueError(f"motion.track = {self.track!r}; valid choices: figure8, ring")
+        if not self.radius > 0.0:
+            raise ValueError(f"motion.radius = {self.radius:g} m must be > 0")
+        if not 0.0 <= self.speed <= 40.0:
+            raise ValueError(f"motion.speed = {self.speed:g} m/s is out of range [0, 40]")
+        p = self.car_params()
+        turning = p.wheelbase / math.tan(p.max_steer)
+        r_min = self.make_track().min_radius()
+        if r_min < turning + p.track:
+            raise ValueError(f"motion.radius = {self.radius:g} m gives curves of {r_min:.1f} m"
+                             f" radius, tighter than the car can steer ({turning + p.track:.1f} m)")
+        lateral = self.speed ** 2 / r_min
+        if lateral > G_LATERAL_MAX:
+            raise ValueError(
+                f"motion.speed = {self.speed:g} m/s on curves of {r_min:.1f} m radius needs "
+                f"{lateral:.2f} m/s^2 lateral acceleration; the car holds at most "
+                f"{G_LATERAL_MAX:.2f} (speed <= {math.sqrt(G_LATERAL_MAX * r_min):.1f} m/s)")
+        if not self.accel > 0.0:
+            raise ValueError(f"motion.accel = {self.accel:g} m/s^2 must be > 0")

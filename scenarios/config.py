@@ -7,10 +7,17 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from models.car import VehicleMotion
 from models.ship import ShipSwayMotion
 from models.units import arcsec, deg
 from sensors.encoder import GimbalEncoderSpec
+from sensors.gps import GPS_PRESETS, GpsSpec
 from sensors.imu import IMU_PRESETS, ImuSpec
+from sensors.odometer import ODOMETER_PRESETS, OdometerSpec
+
+WORLDS = ("car", "ship-prescribed")
+CAR_PHYSICS_RATE = 500.0
+"""The car's MuJoCo rate, Hz (2 ms steps); its IMU rate must divide it."""
 
 DATA_DIR = Path(__file__).parent / "data"
 
@@ -36,8 +43,7 @@ def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
             if key.endswith(suffix):
                 name = key[: -len(suffix)]
                 try:
-                    value = (tuple(float(v) * factor for v in value) if isinstance(value, list)
-                             else float(value) * factor)
+                    value = _scale(value, factor)
                 except (TypeError, ValueError):
                     raise ConfigError(f"{section}.{key}: expected a number or a list of numbers,"
                                       f" got {value!r}") from None
@@ -46,6 +52,13 @@ def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
             name = key
         out[name] = value
     return out
+
+
+def _scale(value: Any, factor: float) -> Any:
+    """A number, or nested lists of numbers, times factor (lists become tuples)."""
+    if isinstance(value, list):
+        return tuple(_scale(v, factor) for v in value)
+    return float(value) * factor
 
 
 def _check_range(field: str, value: float, low: float, high: float, unit: str,
@@ -72,8 +85,10 @@ class ScenarioConfig:
     imu_preset: str
     imu: ImuSpec
     encoder: GimbalEncoderSpec
-    motion: ShipSwayMotion
+    motion: ShipSwayMotion | VehicleMotion
     random_linear_phase: bool
+    odometer: OdometerSpec | None = None
+    gps: GpsSpec | None = None
 
     def with_options(self, duration: float | None = None, imu_rate: float | None = None
                      ) -> "ScenarioConfig":
@@ -106,6 +121,16 @@ class ScenarioConfig:
         if abs(self.duration * self.imu_rate - self.imu_samples) > 1e-6 or self.imu_samples < 2:
             raise ConfigError(f"run.duration = {self.duration:g} s must be a whole number (>= 2)"
                               f" of IMU intervals of {self.imu_interval:g} s")
+        if self.world == "car":
+            ratio = CAR_PHYSICS_RATE / self.imu_rate
+            if abs(ratio - round(ratio)) > 1e-9:
+                raise ConfigError(f"run.imu_rate = {self.imu_rate:g} Hz must divide the car's "
+                                  f"physics rate {CAR_PHYSICS_RATE:g} Hz (e.g. 500, 250, 100, 50)")
+            try:
+                self.motion.check()
+            except ValueError as exc:
+                raise ConfigError(str(exc)) from None
+            return
         m = self.motion
         for name in ("yaw_period", "pitch_period", "roll_period"):
             _check_range(f"motion.{name}", getattr(m, name), 0.0, 1e4, "s", low_open=True)
@@ -134,45 +159,76 @@ def load_scenario(name_or_path: str) -> ScenarioConfig:
 
 
 def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
-    def section(name: str) -> dict[str, Any]:
-        if name not in raw or not isinstance(raw[name], dict):
-            raise ConfigError(f"{source}: missing table [{name}]")
+    def section(name: str, required: bool = True) -> dict[str, Any]:
+        if name not in raw:
+            if required:
+                raise ConfigError(f"{source}: missing table [{name}]")
+            return {}
+        if not isinstance(raw[name], dict):
+            raise ConfigError(f"{source}: [{name}] must be a table")
         return _to_si(raw[name], name)
 
-    origin, run, imu, encoder, motion = (section(s) for s in
-                                         ("origin", "run", "imu", "encoder", "motion"))
+    world = str(raw.get("world", ""))
+    if world not in WORLDS:
+        raise ConfigError(f"world = {world!r} is unknown; valid choices: " + ", ".join(WORLDS))
+    origin, run, imu, motion = (section(s) for s in ("origin", "run", "imu", "motion"))
     preset = imu.get("preset")
     if preset not in IMU_PRESETS:
         raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
                           + ", ".join(sorted(IMU_PRESETS)))
-    phase = motion.pop("linear_phase", "random")
-    random_phase = phase == "random"
-    if not random_phase:
-        if not (isinstance(phase, tuple) and len(phase) == 3):
-            raise ConfigError("motion.linear_phase must be \"random\" or linear_phase_deg = "
-                              "[3 values]")
-        motion["linear_phase"] = phase
-    known = {f.name for f in fields(ShipSwayMotion)}
-    unknown = sorted(set(motion) - known)
-    if unknown:
-        raise ConfigError(f"motion.{unknown[0]} is not a motion parameter; valid: "
-                          + ", ".join(sorted(known)))
-    for key in ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b"):
-        if key in motion and len(motion[key]) != 3:
-            raise ConfigError(f"motion.{key} must have 3 values (E, N, U or R, F, U)")
-    try:
-        encoder_spec = GimbalEncoderSpec(**encoder)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"encoder: {exc}") from None
+    if world == "car":
+        motion_obj, random_phase = _dataclass_from(VehicleMotion, motion, "motion"), False
+    else:
+        phase = motion.pop("linear_phase", "random")
+        random_phase = phase == "random"
+        if not random_phase:
+            if not (isinstance(phase, tuple) and len(phase) == 3):
+                raise ConfigError("motion.linear_phase must be \"random\" or "
+                                  "linear_phase_deg = [3 values]")
+            motion["linear_phase"] = phase
+        for key in ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b"):
+            if key in motion and len(motion[key]) != 3:
+                raise ConfigError(f"motion.{key} must have 3 values (E, N, U or R, F, U)")
+        motion_obj = _dataclass_from(ShipSwayMotion, motion, "motion")
+    encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
+    odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
+    gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
     try:
         config = ScenarioConfig(
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
-            world=str(raw.get("world", "")),
-            latitude=origin["latitude"], longitude=origin["longitude"], height=origin["height"],
-            duration=run["duration"], imu_rate=run["imu_rate"], imu_preset=preset,
-            imu=IMU_PRESETS[preset], encoder=encoder_spec, motion=ShipSwayMotion(**motion),
-            random_linear_phase=random_phase)
+            world=world, latitude=origin["latitude"], longitude=origin["longitude"],
+            height=origin["height"], duration=run["duration"], imu_rate=run["imu_rate"],
+            imu_preset=preset, imu=IMU_PRESETS[preset], encoder=encoder, motion=motion_obj,
+            random_linear_phase=random_phase, odometer=odometer, gps=gps)
     except KeyError as exc:
         raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
     config.validate()
     return config
+
+
+def _dataclass_from(cls, values: dict[str, Any], section: str):
+    """cls(**values) with errors that name the section's field."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ConfigError(f"{section}.{unknown[0]} is not a parameter; valid: "
+                          + ", ".join(sorted(known)))
+    try:
+        return cls(**values)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{section}: {exc}") from None
+
+
+def _sensor(values: dict[str, Any], presets: dict, cls, section: str):
+    """A sensor spec from a table: a preset plus overrides; None without a table."""
+    if not values:
+        return None
+    values = dict(values)
+    preset = values.pop("preset", None)
+    if preset is not None and preset not in presets:
+        raise ConfigError(f"{section}.preset = {preset!r} is unknown; valid choices: "
+                          + ", ".join(sorted(presets)))
+    base = {f.name: getattr(presets[preset], f.name) for f in fields(cls)} if preset else {}
+    if "pulses_per_rev" in values:
+        values["pulses_per_rev"] = int(values["pulses_per_rev"])
+    return _dataclass_from(cls, {**base, **values}, section)

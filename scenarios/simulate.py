@@ -1,7 +1,7 @@
 """One episode of a scenario: MuJoCo truth, ideal or erroneous IMU increments, encoders."""
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +31,8 @@ class Episode:
     dv: np.ndarray
     gimbal_encoder: np.ndarray
     imu_realization: ImuRealization | None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    """Further sensors' arrays (odometer, GPS), in the export's names."""
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The export arrays (README "Data files")."""
@@ -44,6 +46,7 @@ class Episode:
         if self.imu_realization is not None:
             out["gyro_bias"] = self.imu_realization.gyro.bias
             out["accel_bias"] = self.imu_realization.accel.bias
+        out.update(self.extra)
         return out
 
     def save(self, path: str | Path) -> Path:
@@ -59,9 +62,10 @@ class Episode:
 def episode_rngs(seed: int) -> dict[str, np.random.Generator]:
     """Independent random streams of one episode, so that the truth does not depend on
     whether sensor errors are drawn."""
-    children = np.random.SeedSequence(seed).spawn(4)
+    children = np.random.SeedSequence(seed).spawn(6)
     return {name: np.random.default_rng(s) for name, s in
-            zip(("motion", "imu_realization", "imu_noise", "encoder"), children)}
+            zip(("motion", "imu_realization", "imu_noise", "encoder", "odometer", "gps"),
+                children)}
 
 
 def make_world(config: ScenarioConfig, rng: np.random.Generator) -> ShipWorld:
@@ -78,6 +82,8 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     """Simulate one episode of the scenario."""
     if seed < 0:
         raise ConfigError(f"seed = {seed} must be >= 0")
+    if config.world == "car":
+        return _simulate_car(config, seed, ideal)
     rngs = episode_rngs(seed)
     world = make_world(config, rngs["motion"])
     plane = TangentPlane(config.latitude, config.longitude, config.height)
@@ -85,15 +91,74 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     t_fine = np.arange(n_fine + 1) * (config.duration / n_fine)
     truth_fine = navigation_truth(world.sample(t_fine), plane)
     imu_t, dtheta, dv = ideal_increments(truth_fine, TRUTH_OVERSAMPLING)
-    realization = None
-    if not ideal:
-        realization = config.imu.draw(rngs["imu_realization"])
-        dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu,
-                                      realization, rngs["imu_noise"])
     truth = truth_fine.take(slice(None, None, TRUTH_OVERSAMPLING))
+    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
     encoder = config.encoder
     offsets = np.zeros(2) if ideal else encoder.draw_offsets(rngs["encoder"])
     reading = (truth.gimbal_angles.copy() if ideal
                else encoder.measure(truth.gimbal_angles, offsets))
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization)
+
+
+def _imu_errors(config, rngs, dtheta, dv, ideal):
+    if ideal:
+        return dtheta, dv, None
+    realization = config.imu.draw(rngs["imu_realization"])
+    dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu, realization,
+                                  rngs["imu_noise"])
+    return dtheta, dv, realization
+
+
+def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
+    """The car world: MuJoCo dynamics at 500 Hz, exact discrete IMU, odometer, GPS."""
+    from models.attitude import quat_rotate
+    from models.car import CarWorld, discrete_imu
+    from models.truth import gravity_t, plane_truth
+    from sensors import gps as gps_sensor
+
+    rngs = episode_rngs(seed)
+    motion = config.motion
+    params = motion.car_params()
+    world = CarWorld(params, motion.make_track(), motion.profile(),
+                     roughness_seed=int(rngs["motion"].integers(2 ** 31)))
+    run = world.run(config.duration)
+    plane = TangentPlane(config.latitude, config.longitude, config.height)
+    raw_site = run.pos + quat_rotate(run.quat, np.asarray(params.imu_offset_b))
+    dtheta, dv, site, v_site = discrete_imu(run, plane.omega_ie_t,
+                                            gravity_t(plane, 0.5 * (raw_site[:-1] + raw_site[1:])))
+    k = int(round(1.0 / (config.imu_rate * run.dt)))
+    m = config.imu_samples
+    dtheta = dtheta[: m * k].reshape(m, k, 3).sum(1)
+    dv = dv[: m * k].reshape(m, k, 3).sum(1)
+    idx = np.arange(m + 1) * k
+    truth = plane_truth(plane, run.t[idx], site[idx], v_site[idx], run.quat[idx],
+                        run.quat[idx], np.zeros((m + 1, 2)))
+    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
+    extra = {"cross_track": run.cross_track[idx]}
+    if config.odometer is not None:
+        odo = config.odometer
+        scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
+        extra.update({"odo_t": truth.t, "odo_distance": odo.distance(
+            run.wheel_angles[idx][:, 2:4], scale), "odo_scale_error": np.array(scale),
+            "odo_mounting": np.array([odo.mounting_pitch, odo.mounting_heading])})
+    if config.gps is not None:
+        spec = config.gps
+        step = int(round(1.0 / (spec.rate * run.dt)))
+        lag = int(round(spec.latency / run.dt))
+        g_idx = np.arange(lag % step, run.t.size - lag, step) if lag else np.arange(
+            0, run.t.size, step)
+        antenna_b = np.asarray(params.gps_antenna_b)
+        R_t = run.quat[g_idx]
+        origin = run.pos[g_idx] - (run.vel[g_idx] - run.vel[0]) * run.dt / 2.0
+        ant = origin + quat_rotate(R_t, antenna_b)
+        from models.attitude import cross
+        v_ant = run.vel[g_idx] + quat_rotate(R_t, cross(run.omega[g_idx + 1], antenna_b))
+        at = plane_truth(plane, run.t[g_idx], ant, v_ant, R_t, R_t, np.zeros((g_idx.size, 2)))
+        if ideal:
+            spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
+                           velocity_sigma=0.0)
+        extra.update(gps_sensor.measure(spec, at.t, at.lat, at.lon, at.h, at.v_n, rngs["gps"]))
+    return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=truth.t[1:],
+                   dtheta=dtheta, dv=dv, gimbal_encoder=truth.gimbal_angles,
+                   imu_realization=realization, extra=extra)

@@ -1,0 +1,85 @@
+"""GPS receiver: antenna position and velocity with white errors, rate, latency, outages,
+and the single-antenna heading from the velocity with its sigma (001 eqs. 1-4)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class GpsSpec:
+    """rate: Hz; position sigmas horizontal / vertical, m; velocity_sigma per axis, m/s;
+    heading_min_speed: below this horizontal speed the heading is flagged invalid, m/s;
+    latency: age of each fix when it is stamped, s; outages: (start, end) windows, s."""
+
+    rate: float = 1.0
+    position_sigma_h: float = 0.02
+    position_sigma_v: float = 0.03
+    velocity_sigma: float = 0.02
+    heading_min_speed: float = 5.0
+    latency: float = 0.0
+    outages: tuple[tuple[float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.rate <= 100.0:
+            raise ValueError(f"gps.rate = {self.rate} Hz is out of range (0, 100]")
+        for name in ("position_sigma_h", "position_sigma_v", "velocity_sigma", "latency",
+                     "heading_min_speed"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"gps.{name} must be finite and >= 0, got {value}")
+        for start, end in self.outages:
+            if not end > start:
+                raise ValueError(f"gps.outages: window ({start}, {end}) must have end > start")
+
+
+def heading_from_velocity(v_n: np.ndarray, velocity_sigma: float
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw (rad, the truth's convention: CCW from north, = -atan2(v_E, v_N)) and its
+    sigma (rad) from ENU velocity (N, 3) with isotropic horizontal sigma (001 eqs. 2-4:
+    sigma = sqrt(A Sigma A^T), A = [v_N, -v_E] / |v_h|^2 -> sigma_v / |v_h|)."""
+    v_h = np.hypot(v_n[:, 0], v_n[:, 1])
+    yaw = -np.arctan2(v_n[:, 0], v_n[:, 1])
+    with np.errstate(divide="ignore"):
+        sigma = np.where(v_h > 0.0, velocity_sigma / v_h, np.inf)
+    return yaw, sigma
+
+
+def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
+            v_n: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Fixes from the antenna truth (lat, lon rad; h m; v_n (N, 3) m/s ENU) at the times
+    t (N,) s the fixes describe. Stamps are t + latency; fixes inside an outage are NaN
+    and invalid."""
+    from models.earth import radii
+
+    n = t.size
+    R_M, R_N = radii(lat)
+    d_north = spec.position_sigma_h * rng.standard_normal(n)
+    d_east = spec.position_sigma_h * rng.standard_normal(n)
+    d_up = spec.position_sigma_v * rng.standard_normal(n)
+    v_meas = v_n + spec.velocity_sigma * rng.standard_normal((n, 3))
+    yaw, sigma = heading_from_velocity(v_meas, spec.velocity_sigma)
+    stamp = t + spec.latency
+    valid = np.ones(n, bool)
+    for start, end in spec.outages:
+        valid &= ~((stamp >= start) & (stamp < end))
+    out = {"gps_t": stamp,
+           "gps_lat": lat + d_north / (R_M + h), "gps_lon": lon + d_east / ((R_N + h) * np.cos(lat)),
+           "gps_h": h + d_up, "gps_v_n": v_meas, "gps_heading": yaw,
+           "gps_heading_sigma": sigma, "gps_valid": valid,
+           "gps_heading_valid": valid & (np.hypot(v_meas[:, 0], v_meas[:, 1])
+                                         >= spec.heading_min_speed)}
+    for key in ("gps_lat", "gps_lon", "gps_h", "gps_heading", "gps_heading_sigma"):
+        out[key] = np.where(valid, out[key], np.nan)
+    out["gps_v_n"] = np.where(valid[:, None], out["gps_v_n"], np.nan)
+    return out
+
+
+GPS_PRESETS = {
+    "rtk": GpsSpec(position_sigma_h=0.02, position_sigma_v=0.03, velocity_sigma=0.02),
+    "single-point": GpsSpec(position_sigma_h=2.5, position_sigma_v=5.0, velocity_sigma=0.05),
+}
+"""001: RTK, cm / cm/s (values within that level assumed); 004: 2.5 m, 0.05 m/s
+(vertical 5 m assumed)."""

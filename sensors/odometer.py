@@ -1,0 +1,55 @@
+"""Wheel odometer from the simulated wheel encoders: pulses per revolution, nominal versus
+effective wheel radius, scale-factor error dK_D and mounting angles to the IMU."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class OdometerSpec:
+    """pulses_per_rev: encoder resolution; nominal_radius: the wheel radius the odometer
+    assumes, m; scale_error: dK_D, the odometer's relative scale-factor error (fixed);
+    scale_error_sigma: 1 sigma of dK_D drawn per episode instead (0: use scale_error);
+    mounting_pitch, mounting_heading: odometer frame to IMU, rad (for the models that
+    resolve the odometer velocity in the IMU frame; the distance is unaffected)."""
+
+    pulses_per_rev: int = 1024
+    nominal_radius: float = 0.33
+    scale_error: float = 0.003
+    scale_error_sigma: float = 0.0
+    mounting_pitch: float = math.radians(0.5)
+    mounting_heading: float = math.radians(0.5)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.pulses_per_rev, int) and self.pulses_per_rev >= 1):
+            raise ValueError(f"odometer.pulses_per_rev must be an integer >= 1, got "
+                             f"{self.pulses_per_rev}")
+        if not self.nominal_radius > 0.0:
+            raise ValueError(f"odometer.nominal_radius must be > 0 m, got {self.nominal_radius}")
+        if not abs(self.scale_error) < 0.5:
+            raise ValueError(f"odometer.scale_error must be in (-0.5, 0.5), got "
+                             f"{self.scale_error}")
+
+    def draw_scale_error(self, rng: np.random.Generator) -> float:
+        """dK_D of one episode."""
+        if self.scale_error_sigma > 0.0:
+            return float(self.scale_error_sigma * rng.standard_normal())
+        return self.scale_error
+
+    def distance(self, wheel_angles: np.ndarray, scale_error: float) -> np.ndarray:
+        """Cumulative distance (N,) m from the driven wheels' unwrapped angles (N, k) rad:
+        the mean wheel angle counted in whole pulses, times the nominal circumference,
+        times (1 + dK_D)."""
+        angle = np.mean(wheel_angles, axis=1) - np.mean(wheel_angles[0])
+        pulses = np.floor(angle / (2 * math.pi) * self.pulses_per_rev)
+        return pulses / self.pulses_per_rev * 2 * math.pi * self.nominal_radius * (
+            1.0 + scale_error)
+
+
+ODOMETER_PRESETS = {
+    # 000: scale-factor error, encoder quantization, mounting pitch/heading (values assumed).
+    "paper000": OdometerSpec(),
+}
