@@ -7,7 +7,6 @@ import time
 import numpy as np
 
 from estimators.strapdown import StrapdownState, run_strapdown
-from models.earth import TangentPlane
 from scenarios.config import load_scenario
 from scenarios.simulate import TRUTH_OVERSAMPLING, make_world, simulate
 

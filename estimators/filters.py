@@ -14,7 +14,8 @@ import numpy as np
 
 from estimators.rules import (CubatureRule, IntegrationRule, LinearRule,
                               SparseGridGaussHermiteRule, UnscentedRule)
-from estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors, InnovationFading,
+from estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors,
+                                   InnovationFading,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
 
 

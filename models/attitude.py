@@ -145,7 +145,8 @@ def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
     s = np.linalg.norm(u, axis=-1, keepdims=True)
     angle = 2.0 * np.arctan2(s, w)
     small = s < 1e-8
-    scale = np.where(small, 2.0 / w * (1.0 - s * s / (3.0 * w * w)), angle / np.where(small, 1.0, s))
+    scale = np.where(small, 2.0 / w * (1.0 - s * s / (3.0 * w * w)),
+                     angle / np.where(small, 1.0, s))
     return scale * u
 
 

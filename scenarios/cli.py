@@ -121,7 +121,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     print(f"{config.name}: {config.duration:g} s, IMU {config.imu_rate:g} Hz "
           f"({episode.dtheta.shape[0]} samples, {'ideal' if args.ideal else config.imu_preset}),"
           f" seed {args.seed}, {elapsed:.2f} s wall")
-    print(f"  hull pitch/roll/yaw range: "
+    print("  hull pitch/roll/yaw range: "
           + ", ".join(f"[{lo:.1f}, {hi:.1f}] deg" for lo, hi in
                       zip(euler.min(0) / deg, euler.max(0) / deg)))
     print(f"  wrote {path}")

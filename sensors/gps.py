@@ -66,7 +66,8 @@ def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: n
     for start, end in spec.outages:
         valid &= ~((stamp >= start) & (stamp < end))
     out = {"gps_t": stamp,
-           "gps_lat": lat + d_north / (R_M + h), "gps_lon": lon + d_east / ((R_N + h) * np.cos(lat)),
+           "gps_lat": lat + d_north / (R_M + h),
+           "gps_lon": lon + d_east / ((R_N + h) * np.cos(lat)),
            "gps_h": h + d_up, "gps_v_n": v_meas, "gps_heading": yaw,
            "gps_heading_sigma": sigma, "gps_valid": valid,
            "gps_heading_valid": valid & (np.hypot(v_meas[:, 0], v_meas[:, 1])

@@ -8,7 +8,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from models.car import VehicleMotion, figure8_track
 from models.units import arcsec
 from scenarios.config import DATA_DIR, load_scenario
 from scenarios.fidelity import fidelity_errors

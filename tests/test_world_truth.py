@@ -1,6 +1,5 @@
 """MuJoCo ship world and navigation truth: sensors agree with the prescribed motion, and
 the truth is self-consistent with the earth model."""
-from dataclasses import replace
 
 import numpy as np
 import pytest
