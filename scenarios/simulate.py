@@ -127,13 +127,25 @@ def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     raw_site = run.pos + quat_rotate(run.quat, np.asarray(params.imu_offset_b))
     dtheta, dv, site, v_site = discrete_imu(run, plane.omega_ie_t,
                                             gravity_t(plane, 0.5 * (raw_site[:-1] + raw_site[1:])))
+    gimbal = motion.gimbal_angles(run.t)
+    q_s_t = run.quat
+    if motion.has_gimbal:
+        from models.attitude import euler_to_quat, quat_mul
+        from models.car import gimbal_imu
+        dtheta, dv = gimbal_imu(run, plane.omega_ie_t, gravity_t(
+            plane, 0.5 * (raw_site[:-1] + raw_site[1:])), motion.gimbal_outer_rate,
+            motion.gimbal_inner_rate)
+        zero = np.zeros(run.t.size)
+        # C_s_b = Rz(outer) Rx(inner) is the PSINS Euler DCM with pitch = inner, yaw = outer.
+        q_s_t = quat_mul(run.quat, euler_to_quat(np.stack([gimbal[:, 1], zero, gimbal[:, 0]],
+                                                          -1)))
     k = int(round(1.0 / (config.imu_rate * run.dt)))
     m = config.imu_samples
     dtheta = dtheta[: m * k].reshape(m, k, 3).sum(1)
     dv = dv[: m * k].reshape(m, k, 3).sum(1)
     idx = np.arange(m + 1) * k
     truth = plane_truth(plane, run.t[idx], site[idx], v_site[idx], run.quat[idx],
-                        run.quat[idx], np.zeros((m + 1, 2)))
+                        q_s_t[idx], gimbal[idx])
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
     extra = {"cross_track": run.cross_track[idx]}
     if config.odometer is not None:
@@ -159,6 +171,9 @@ def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
             spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
                            velocity_sigma=0.0)
         extra.update(gps_sensor.measure(spec, at.t, at.lat, at.lon, at.h, at.v_n, rngs["gps"]))
+    encoder = config.encoder
+    reading = (truth.gimbal_angles.copy() if ideal or not motion.has_gimbal else
+               encoder.measure(truth.gimbal_angles, encoder.draw_offsets(rngs["encoder"])))
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=truth.t[1:],
-                   dtheta=dtheta, dv=dv, gimbal_encoder=truth.gimbal_angles,
+                   dtheta=dtheta, dv=dv, gimbal_encoder=reading,
                    imu_realization=realization, extra=extra)
