@@ -287,32 +287,31 @@ class CarWorld:
         m, d, p = self.model, self.data, self.params
         dt = m.opt.timestep
         n = int(round(duration / dt))
-        pos = np.empty((n + 1, 3)); quat = np.empty((n + 1, 4))
-        vel = np.empty((n + 2, 3)); omega = np.empty((n + 2, 3))
-        wheels = np.empty((n + 1, 4)); xtrack = np.empty(n + 1)
+        qpos_hist = np.empty((n + 1, m.nq))
+        qvel_hist = np.empty((n + 2, m.nv))
+        control_steps = np.arange(0, n + 1, self.control_period)
+        xtrack = np.empty(control_steps.size)
         driver = PurePursuit(self.track, p)
-        qpos, qvel = d.qpos, d.qvel
-        spin = self._spin_qpos
+        qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
         rear_offset = np.array([0.0, -p.wheelbase / 2])
-        left = right = 0.0
-        xt = 0.0
+        period = self.control_period
         for k in range(n + 1):
-            pos[k] = qpos[0:3]; quat[k] = qpos[3:7]
-            vel[k] = qvel[0:3]; omega[k] = qvel[3:6]
-            wheels[k] = qpos[spin]
-            if k % self.control_period == 0:
+            qpos_hist[k] = qpos
+            qvel_hist[k] = qvel
+            if k % period == 0:
                 C = quat_to_dcm(qpos[3:7])
                 yaw = math.atan2(-C[0, 1], C[1, 1])
                 rear = qpos[0:2] + C[:2, :2] @ rear_offset
-                left, right, xt = driver.steer(rear, yaw)
-                d.ctrl[0], d.ctrl[1] = left, right
-                d.ctrl[2] = self.profile.target_speed(k * dt) / p.wheel_radius
-            xtrack[k] = xt
+                left, right, xtrack[k // period] = driver.steer(rear, yaw)
+                ctrl[0], ctrl[1] = left, right
+                ctrl[2] = self.profile.target_speed(k * dt) / p.wheel_radius
             mujoco.mj_step(m, d)
-        vel[n + 1] = qvel[0:3]; omega[n + 1] = qvel[3:6]
-        return CarRun(dt=dt, t=np.arange(n + 1) * dt, pos=pos, quat=quat, vel=vel,
-                      omega=omega, wheel_angles=np.unwrap(wheels, axis=0), cross_track=xtrack,
-                      params=p)
+        qvel_hist[n + 1] = qvel
+        wheels = qpos_hist[:, self._spin_qpos]
+        return CarRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
+                      quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3], omega=qvel_hist[:, 3:6],
+                      wheel_angles=np.unwrap(wheels, axis=0),
+                      cross_track=np.repeat(xtrack, period)[: n + 1], params=p)
 
 
 def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
