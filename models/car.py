@@ -207,26 +207,32 @@ class PurePursuit:
         """(left, right, cross-track error) for the rear-axle position (E, N) and yaw
         (rad, CCW from north)."""
         pts, n = self.track.points, len(self.track.points)
-        window = (self._index + np.arange(-20, 400)) % n
-        d = np.linalg.norm(pts[window] - pos, axis=1)
-        self._index = int(window[np.argmin(d)])
+        window = (self._index + np.arange(-10, 120)) % n  # the car moves a few points per call
+        d2 = (pts[window, 0] - pos[0]) ** 2 + (pts[window, 1] - pos[1]) ** 2
+        best = int(np.argmin(d2))
+        if best == len(window) - 1:  # lost the track: search it all
+            window = np.arange(n)
+            d2 = (pts[:, 0] - pos[0]) ** 2 + (pts[:, 1] - pos[1]) ** 2
+            best = int(np.argmin(d2))
+        self._index = int(window[best])
         s_target = (self.track.s[self._index] + self.lookahead) % self.track.length
-        target = pts[np.searchsorted(self.track.s, s_target) % n]
-        forward = np.array([-np.sin(yaw), np.cos(yaw)])
-        right = np.array([np.cos(yaw), np.sin(yaw)])
-        rel = target - pos
-        alpha = math.atan2(rel @ right, rel @ forward)  # positive: target to the right
+        tx, ty = pts[int(np.searchsorted(self.track.s, s_target)) % n]
+        dx, dy = tx - pos[0], ty - pos[1]
+        c, s_ = math.cos(yaw), math.sin(yaw)
+        # forward = (-sin yaw, cos yaw), right = (cos yaw, sin yaw); positive alpha: right
+        alpha = math.atan2(dx * c + dy * s_, -dx * s_ + dy * c)
         delta = math.atan(2.0 * self.p.wheelbase * math.sin(alpha) / self.lookahead)
-        delta = float(np.clip(delta, -self.p.max_steer, self.p.max_steer))
+        delta = min(max(delta, -self.p.max_steer), self.p.max_steer)
+        error = math.sqrt(float(d2[best]))
         if abs(delta) < 1e-6:
-            return 0.0, 0.0, float(d.min())
+            return 0.0, 0.0, error
         R = self.p.wheelbase / math.tan(abs(delta))
         inner = math.atan(self.p.wheelbase / (R - self.p.track / 2))
         outer = math.atan(self.p.wheelbase / (R + self.p.track / 2))
         # A right turn (delta > 0) is a negative rotation about up.
         if delta > 0:
-            return -outer, -inner, float(d.min())
-        return inner, outer, float(d.min())
+            return -outer, -inner, error
+        return inner, outer, error
 
 
 # --- the world ------------------------------------------------------------------------------
@@ -257,7 +263,7 @@ class CarWorld:
     """The car and its driver in MuJoCo."""
 
     def __init__(self, params: CarParams, track: Track, profile: DriveProfile,
-                 roughness_seed: int = 0, control_period: int = 10) -> None:
+                 roughness_seed: int = 0, control_period: int = 25) -> None:
         self.params, self.track, self.profile = params, track, profile
         reach = np.abs(track.points).max() + 30.0
         xml, assets = car_mjcf(params, roughness_seed, extent=float(reach))
@@ -299,9 +305,11 @@ class CarWorld:
             qpos_hist[k] = qpos
             qvel_hist[k] = qvel
             if k % period == 0:
-                C = quat_to_dcm(qpos[3:7])
-                yaw = math.atan2(-C[0, 1], C[1, 1])
-                rear = qpos[0:2] + C[:2, :2] @ rear_offset
+                w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
+                # yaw from C = quat_to_dcm(q): atan2(-C[0, 1], C[1, 1])
+                yaw = math.atan2(-2 * (x * y - w * z), 1 - 2 * (x * x + z * z))
+                fx, fy = 2 * (x * y - w * z), 1 - 2 * (x * x + z * z)  # C[0, 1], C[1, 1]
+                rear = (qpos[0] + fx * rear_offset[1], qpos[1] + fy * rear_offset[1])
                 left, right, xtrack[k // period] = driver.steer(rear, yaw)
                 ctrl[0], ctrl[1] = left, right
                 ctrl[2] = self.profile.target_speed(k * dt) / p.wheel_radius
