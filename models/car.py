@@ -258,6 +258,19 @@ class CarRun:
     cross_track: np.ndarray
     params: CarParams = field(default_factory=CarParams)
 
+    def point_kinematics(self, r_b: np.ndarray, index: np.ndarray | slice = slice(None)
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Plane position (m) and velocity (m/s) of the chassis point r_b (3,) m at sample
+        times, in the truth's continuous-motion convention (see ``discrete_imu``): the
+        origin's velocity changes linearly over each step, so its path lags MuJoCo's
+        positions by (vel[k] - vel[0]) dt / 2; the body rate over step k is omega[k+1]."""
+        R = quat_to_dcm(self.quat[index])
+        vel = self.vel[:-1][index]
+        origin = self.pos[index] - (vel - self.vel[0]) * self.dt / 2.0
+        r_b = np.asarray(r_b, dtype=float)
+        return (origin + np.einsum("nij,j->ni", R, r_b),
+                vel + np.einsum("nij,nj->ni", R, cross(self.omega[1:][index], r_b)))
+
 
 class CarWorld:
     """The car and its driver in MuJoCo."""
@@ -334,82 +347,64 @@ def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
     return dt * np.eye(3) - a * K + b * (K @ K)
 
 
-def gimbal_imu(run: CarRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
-               outer_rate: float, inner_rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """IMU increments per physics step for an IMU on a double-axis gimbal at the chassis
-    point r (outer about body z, inner about x; C_s_b = Rz(outer) Rx(inner), angles
-    rate x t). The chassis part is as in ``discrete_imu``; the sensor-frame rate and
-    specific force are integrated with Simpson's rule over each step (the gimbal turns
-    by < 1e-3 rad per step, so the error is ~1e-15 per step)."""
-    from models.attitude import rot_x, rot_z, rotvec_to_dcm
-
-    r = np.asarray(run.params.imu_offset_b)
-    dt = run.dt
-    R = quat_to_dcm(run.quat)
-    w = run.omega[1:-1]
-    v0, v1 = run.vel[:-2], run.vel[1:-1]
-    accel = (v1 - v0) / dt
-    Rt = np.swapaxes(R[:-1], -1, -2)
-    v_mid = 0.5 * (v0 + v1) + np.einsum("nij,nj->ni", R[:-1], cross(w, r))
-    force_t = accel + 2.0 * cross(omega_ie_t, v_mid) - gravity_t
-    t0 = run.t[:-1]
-    dtheta = np.zeros_like(w)
-    dv = np.zeros_like(w)
-    for tau, weight in ((0.0, dt / 6), (dt / 2, 4 * dt / 6), (dt, dt / 6)):
-        C_t_b = rotvec_to_dcm(-w * tau) @ Rt               # chassis attitude at t_k + tau
-        omega_b = w + np.einsum("nij,j->ni", C_t_b, omega_ie_t)
-        f_b = cross(w, cross(w, r)) + np.einsum("nij,nj->ni", C_t_b, force_t)
-        outer, inner = outer_rate * (t0 + tau), inner_rate * (t0 + tau)
-        C_s_b = rot_z(outer) @ rot_x(inner)
-        omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
-                               np.cos(inner) * outer_rate], -1)
-        dtheta += weight * (np.einsum("nji,nj->ni", C_s_b, omega_b) + omega_bs_s)
-        dv += weight * np.einsum("nji,nj->ni", C_s_b, f_b)
-    t1 = run.t[1:]
-    C_s_b_end = rot_z(outer_rate * t1) @ rot_x(inner_rate * t1)
-    dv += np.einsum("nji,nj->ni", C_s_b_end, cross(run.omega[2:] - w, r))
-    return dtheta, dv
-
-
 def discrete_imu(run: CarRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                 gimbal_rates: tuple[float, float] = (0.0, 0.0)
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """IMU increments per physics step, consistent with the recorded discrete motion.
 
-    The IMU is fixed to the chassis at r = imu_offset_b (sensor = body axes). Over step k
-    MuJoCo turns the chassis at the constant body rate omega = omega[k+1] (exact here).
-    Its origin's velocity changes from vel[k] to vel[k+1]; MuJoCo applies that change at
-    once, which a strapdown (continuous motion) would integrate in the wrong frame by
-    1/2 omega x a dt (~0.1 mm/s per s in a 0.5 g turn). The truth therefore spreads it
-    as a constant acceleration a_k over the step: the origin's path then differs from
-    MuJoCo's positions by -(vel[k] - vel[0]) dt/2 (< 2 cm at 60 km/h), which the truth
-    positions include. Per step, in the sensor frame:
-    dtheta = omega dt + E R_k^T omega_ie;
-    dv = omega x (omega x r) dt + E R_k^T (a_k + 2 omega_ie x v_site - g)
-         + (omega[k+2] - omega[k+1]) x r   (the rate change at the step's end),
-    with E the rotation integral (``rotation_integral``) and g the true gravity in the
-    plane at the step (gravity_t (n, 3)).
-    Returns dtheta (n, 3), dv (n, 3), and the IMU's position (n+1, 3) and velocity
-    (n+1, 3) in the plane at the sample times.
+    The IMU sits at the chassis point r = imu_offset_b, fixed to the chassis (sensor =
+    body axes) or on a double-axis gimbal turning at gimbal_rates (outer about body z,
+    inner about x, rad/s; C_s_b = Rz(outer t) Rx(inner t)). Over step k MuJoCo turns the
+    chassis at the constant body rate omega = omega[k+1] (exact here). Its origin's
+    velocity changes from vel[k] to vel[k+1]; MuJoCo applies that change at once, which a
+    strapdown (continuous motion) would integrate in the wrong frame by 1/2 omega x a dt
+    (~0.1 mm/s per s in a 0.5 g turn), so the truth spreads it as a constant acceleration
+    a_k over the step (``CarRun.point_kinematics``). Per step, in body axes:
+    omega_ib = omega + C_t_b(tau) omega_ie,
+    f_b = omega x (omega x r) + C_t_b(tau) (a_k + 2 omega_ie x v_site - g),
+    plus (omega[k+2] - omega[k+1]) x r at the step's end (the rate change), with
+    C_t_b(tau) = exp(-[omega x] tau) R_k^T and g the true gravity at the step
+    (gravity_t (n, 3)). Without a gimbal the integrals are closed-form (the rotation
+    integral E); with one, Simpson's rule in sensor axes (the gimbal turns < 1e-3 rad per
+    step, error ~1e-15). Returns dtheta (n, 3) rad and dv (n, 3) m/s in the sensor frame.
     """
     r = np.asarray(run.params.imu_offset_b)
     dt = run.dt
     R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) chassis to plane at t_k
+    Rt = np.swapaxes(R[:-1], -1, -2)
     w = run.omega[1:-1]                        # (n, 3) rate over step k
     v0, v1 = run.vel[:-2], run.vel[1:-1]       # origin velocity at the step's start/end
-    accel = (v1 - v0) / dt
-    E = rotation_integral(w, dt)               # (n, 3, 3)
-    Rt = np.swapaxes(R[:-1], -1, -2)
-    dtheta = w * dt + np.einsum("nij,nj->ni", E @ Rt, np.broadcast_to(omega_ie_t, w.shape))
-    # Site velocity in the plane at mid-step (Coriolis term, second order in dt).
     R_mid = R[:-1] @ (np.eye(3) + 0.5 * dt * skew(w))
     v_site_mid = 0.5 * (v0 + v1) + np.einsum("nij,nj->ni", R_mid, cross(w, r))
-    force_t = accel + 2.0 * cross(omega_ie_t, v_site_mid) - gravity_t
-    dv = cross(w, cross(w, r)) * dt + np.einsum("nij,nj->ni", E @ Rt, force_t)
-    dv += cross(run.omega[2:] - w, r)
-    origin = run.pos - (run.vel[:-1] - run.vel[0]) * dt / 2.0
-    site = origin + np.einsum("nij,j->ni", R, r)
-    v_site = run.vel[:-1] + np.einsum("nij,nj->ni", R, cross(run.omega[1:], r))
-    return dtheta, dv, site, v_site
+    force_t = (v1 - v0) / dt + 2.0 * cross(omega_ie_t, v_site_mid) - gravity_t
+    rate_jump = cross(run.omega[2:] - w, r)
+    centripetal = cross(w, cross(w, r))
+    outer_rate, inner_rate = gimbal_rates
+    if outer_rate == 0.0 and inner_rate == 0.0:
+        E = rotation_integral(w, dt)           # (n, 3, 3)
+        dtheta = w * dt + np.einsum("nij,j->ni", E @ Rt, omega_ie_t)
+        dv = centripetal * dt + np.einsum("nij,nj->ni", E @ Rt, force_t) + rate_jump
+        return dtheta, dv
+    from models.attitude import rot_x, rot_z, rotvec_to_dcm
+
+    def C_s_b(t: np.ndarray) -> np.ndarray:
+        return rot_z(outer_rate * t) @ rot_x(inner_rate * t)
+
+    t0 = run.t[:-1]
+    dtheta = np.zeros_like(w)
+    dv = np.zeros_like(w)
+    for tau, weight in ((0.0, dt / 6), (dt / 2, 4 * dt / 6), (dt, dt / 6)):
+        C_t_b = rotvec_to_dcm(-w * tau) @ Rt
+        omega_b = w + np.einsum("nij,j->ni", C_t_b, omega_ie_t)
+        f_b = centripetal + np.einsum("nij,nj->ni", C_t_b, force_t)
+        inner = inner_rate * (t0 + tau)
+        omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
+                               np.cos(inner) * outer_rate], -1)
+        C = C_s_b(t0 + tau)
+        dtheta += weight * (np.einsum("nji,nj->ni", C, omega_b) + omega_bs_s)
+        dv += weight * np.einsum("nji,nj->ni", C, f_b)
+    dv += np.einsum("nji,nj->ni", C_s_b(run.t[1:]), rate_jump)
+    return dtheta, dv
 
 
 @dataclass(frozen=True)

@@ -112,7 +112,7 @@ def _imu_errors(config, rngs, dtheta, dv, ideal):
 
 def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     """The car world: MuJoCo dynamics at 500 Hz, exact discrete IMU, odometer, GPS."""
-    from models.attitude import quat_rotate
+    from models.attitude import euler_to_quat, quat_mul
     from models.car import CarWorld, discrete_imu
     from models.truth import gravity_t, plane_truth
     from sensors import gps as gps_sensor
@@ -124,21 +124,14 @@ def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
                      roughness_seed=int(rngs["motion"].integers(2 ** 31)))
     run = world.run(config.duration)
     plane = TangentPlane(config.latitude, config.longitude, config.height)
-    raw_site = run.pos + quat_rotate(run.quat, np.asarray(params.imu_offset_b))
-    dtheta, dv, site, v_site = discrete_imu(run, plane.omega_ie_t,
-                                            gravity_t(plane, 0.5 * (raw_site[:-1] + raw_site[1:])))
+    site, v_site = run.point_kinematics(params.imu_offset_b)
+    rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
+    dtheta, dv = discrete_imu(run, plane.omega_ie_t,
+                              gravity_t(plane, 0.5 * (site[:-1] + site[1:])), rates)
     gimbal = motion.gimbal_angles(run.t)
-    q_s_t = run.quat
-    if motion.has_gimbal:
-        from models.attitude import euler_to_quat, quat_mul
-        from models.car import gimbal_imu
-        dtheta, dv = gimbal_imu(run, plane.omega_ie_t, gravity_t(
-            plane, 0.5 * (raw_site[:-1] + raw_site[1:])), motion.gimbal_outer_rate,
-            motion.gimbal_inner_rate)
-        zero = np.zeros(run.t.size)
-        # C_s_b = Rz(outer) Rx(inner) is the PSINS Euler DCM with pitch = inner, yaw = outer.
-        q_s_t = quat_mul(run.quat, euler_to_quat(np.stack([gimbal[:, 1], zero, gimbal[:, 0]],
-                                                          -1)))
+    # C_s_b = Rz(outer) Rx(inner): the PSINS Euler DCM with pitch = inner, yaw = outer.
+    q_s_b = euler_to_quat(np.stack([gimbal[:, 1], np.zeros(run.t.size), gimbal[:, 0]], -1))
+    q_s_t = quat_mul(run.quat, q_s_b)
     k = int(round(1.0 / (config.imu_rate * run.dt)))
     m = config.imu_samples
     dtheta = dtheta[: m * k].reshape(m, k, 3).sum(1)
@@ -156,17 +149,10 @@ def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
             "odo_mounting": np.array([odo.mounting_pitch, odo.mounting_heading])})
     if config.gps is not None:
         spec = config.gps
-        step = int(round(1.0 / (spec.rate * run.dt)))
-        lag = int(round(spec.latency / run.dt))
-        g_idx = np.arange(lag % step, run.t.size - lag, step) if lag else np.arange(
-            0, run.t.size, step)
-        antenna_b = np.asarray(params.gps_antenna_b)
-        R_t = run.quat[g_idx]
-        origin = run.pos[g_idx] - (run.vel[g_idx] - run.vel[0]) * run.dt / 2.0
-        ant = origin + quat_rotate(R_t, antenna_b)
-        from models.attitude import cross
-        v_ant = run.vel[g_idx] + quat_rotate(R_t, cross(run.omega[g_idx + 1], antenna_b))
-        at = plane_truth(plane, run.t[g_idx], ant, v_ant, R_t, R_t, np.zeros((g_idx.size, 2)))
+        g_idx = np.arange(0, run.t.size, int(round(1.0 / (spec.rate * run.dt))))
+        antenna, v_antenna = run.point_kinematics(params.gps_antenna_b, g_idx)
+        at = plane_truth(plane, run.t[g_idx], antenna, v_antenna, run.quat[g_idx],
+                         run.quat[g_idx], gimbal[g_idx])
         if ideal:
             spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
                            velocity_sigma=0.0)
