@@ -16,13 +16,12 @@ can be made consistent with the discrete motion to rounding (``discrete_imu``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from models.attitude import cross, quat_to_dcm, skew
-from models.world import IMU_SENSORS_MJCF
+from models.world import IMU_SENSORS_MJCF, DiscreteRun
 
 G_LATERAL_MAX = 0.4 * 9.81
 """Largest steady lateral acceleration the controller is allowed to ask, m/s^2."""
@@ -237,41 +236,6 @@ class PurePursuit:
 
 # --- the world ------------------------------------------------------------------------------
 
-@dataclass
-class CarRun:
-    """Recorded discrete motion at the physics steps.
-
-    t (n+1,) s; pos (n+1, 3) chassis origin in the plane; quat (n+1, 4) chassis to
-    plane; vel (n+2, 3) world velocity of the chassis origin over each step (vel[k] moves
-    the car from t_{k-1} to t_k; vel[0] is the initial state); omega (n+2, 3) body rate,
-    same indexing; wheel_angles (n+1, 4) rad (fl, fr, rl, rr, unwrapped);
-    cross_track (n+1,) m.
-    """
-
-    dt: float
-    t: np.ndarray
-    pos: np.ndarray
-    quat: np.ndarray
-    vel: np.ndarray
-    omega: np.ndarray
-    wheel_angles: np.ndarray
-    cross_track: np.ndarray
-    params: CarParams = field(default_factory=CarParams)
-
-    def point_kinematics(self, r_b: np.ndarray, index: np.ndarray | slice = slice(None)
-                         ) -> tuple[np.ndarray, np.ndarray]:
-        """Plane position (m) and velocity (m/s) of the chassis point r_b (3,) m at sample
-        times, in the truth's continuous-motion convention (see ``discrete_imu``): the
-        origin's velocity changes linearly over each step, so its path lags MuJoCo's
-        positions by (vel[k] - vel[0]) dt / 2; the body rate over step k is omega[k+1]."""
-        R = quat_to_dcm(self.quat[index])
-        vel = self.vel[:-1][index]
-        origin = self.pos[index] - (vel - self.vel[0]) * self.dt / 2.0
-        r_b = np.asarray(r_b, dtype=float)
-        return (origin + np.einsum("nij,j->ni", R, r_b),
-                vel + np.einsum("nij,nj->ni", R, cross(self.omega[1:][index], r_b)))
-
-
 class CarWorld:
     """The car and its driver in MuJoCo."""
 
@@ -301,7 +265,7 @@ class CarWorld:
         d.qpos[0:2] = 0.0
         mujoco.mj_forward(m, d)
 
-    def run(self, duration: float) -> CarRun:
+    def run(self, duration: float) -> DiscreteRun:
         """Drive for duration (s), recording every physics step."""
         m, d, p = self.model, self.data, self.params
         dt = m.opt.timestep
@@ -329,82 +293,11 @@ class CarWorld:
             mujoco.mj_step(m, d)
         qvel_hist[n + 1] = qvel
         wheels = qpos_hist[:, self._spin_qpos]
-        return CarRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
+        return DiscreteRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
                       quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3], omega=qvel_hist[:, 3:6],
                       wheel_angles=np.unwrap(wheels, axis=0),
-                      cross_track=np.repeat(xtrack, period)[: n + 1], params=p)
-
-
-def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
-    """E = integral_0^dt exp(-[omega x] tau) dtau (..., 3, 3) for a constant rate (..., 3)."""
-    w = np.linalg.norm(omega, axis=-1)[..., None, None]
-    K = skew(omega)
-    th = w * dt
-    small = w < 1e-6
-    safe = np.where(small, 1.0, w)
-    a = np.where(small, dt * dt / 2 - w * w * dt ** 4 / 24, (1 - np.cos(th)) / safe ** 2)
-    b = np.where(small, dt ** 3 / 6 - w * w * dt ** 5 / 120, (dt - np.sin(th) / safe) / safe ** 2)
-    return dt * np.eye(3) - a * K + b * (K @ K)
-
-
-def discrete_imu(run: CarRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
-                 gimbal_rates: tuple[float, float] = (0.0, 0.0)
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """IMU increments per physics step, consistent with the recorded discrete motion.
-
-    The IMU sits at the chassis point r = imu_offset_b, fixed to the chassis (sensor =
-    body axes) or on a double-axis gimbal turning at gimbal_rates (outer about body z,
-    inner about x, rad/s; C_s_b = Rz(outer t) Rx(inner t)). Over step k MuJoCo turns the
-    chassis at the constant body rate omega = omega[k+1] (exact here). Its origin's
-    velocity changes from vel[k] to vel[k+1]; MuJoCo applies that change at once, which a
-    strapdown (continuous motion) would integrate in the wrong frame by 1/2 omega x a dt
-    (~0.1 mm/s per s in a 0.5 g turn), so the truth spreads it as a constant acceleration
-    a_k over the step (``CarRun.point_kinematics``). Per step, in body axes:
-    omega_ib = omega + C_t_b(tau) omega_ie,
-    f_b = omega x (omega x r) + C_t_b(tau) (a_k + 2 omega_ie x v_site - g),
-    plus (omega[k+2] - omega[k+1]) x r at the step's end (the rate change), with
-    C_t_b(tau) = exp(-[omega x] tau) R_k^T and g the true gravity at the step
-    (gravity_t (n, 3)). Without a gimbal the integrals are closed-form (the rotation
-    integral E); with one, Simpson's rule in sensor axes (the gimbal turns < 1e-3 rad per
-    step, error ~1e-15). Returns dtheta (n, 3) rad and dv (n, 3) m/s in the sensor frame.
-    """
-    r = np.asarray(run.params.imu_offset_b)
-    dt = run.dt
-    R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) chassis to plane at t_k
-    Rt = np.swapaxes(R[:-1], -1, -2)
-    w = run.omega[1:-1]                        # (n, 3) rate over step k
-    v0, v1 = run.vel[:-2], run.vel[1:-1]       # origin velocity at the step's start/end
-    R_mid = R[:-1] @ (np.eye(3) + 0.5 * dt * skew(w))
-    v_site_mid = 0.5 * (v0 + v1) + np.einsum("nij,nj->ni", R_mid, cross(w, r))
-    force_t = (v1 - v0) / dt + 2.0 * cross(omega_ie_t, v_site_mid) - gravity_t
-    rate_jump = cross(run.omega[2:] - w, r)
-    centripetal = cross(w, cross(w, r))
-    outer_rate, inner_rate = gimbal_rates
-    if outer_rate == 0.0 and inner_rate == 0.0:
-        E = rotation_integral(w, dt)           # (n, 3, 3)
-        dtheta = w * dt + np.einsum("nij,j->ni", E @ Rt, omega_ie_t)
-        dv = centripetal * dt + np.einsum("nij,nj->ni", E @ Rt, force_t) + rate_jump
-        return dtheta, dv
-    from models.attitude import rot_x, rot_z, rotvec_to_dcm
-
-    def C_s_b(t: np.ndarray) -> np.ndarray:
-        return rot_z(outer_rate * t) @ rot_x(inner_rate * t)
-
-    t0 = run.t[:-1]
-    dtheta = np.zeros_like(w)
-    dv = np.zeros_like(w)
-    for tau, weight in ((0.0, dt / 6), (dt / 2, 4 * dt / 6), (dt, dt / 6)):
-        C_t_b = rotvec_to_dcm(-w * tau) @ Rt
-        omega_b = w + np.einsum("nij,j->ni", C_t_b, omega_ie_t)
-        f_b = centripetal + np.einsum("nij,nj->ni", C_t_b, force_t)
-        inner = inner_rate * (t0 + tau)
-        omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
-                               np.cos(inner) * outer_rate], -1)
-        C = C_s_b(t0 + tau)
-        dtheta += weight * (np.einsum("nji,nj->ni", C, omega_b) + omega_bs_s)
-        dv += weight * np.einsum("nji,nj->ni", C, f_b)
-    dv += np.einsum("nji,nj->ni", C_s_b(run.t[1:]), rate_jump)
-    return dtheta, dv
+                      cross_track=np.repeat(xtrack, period)[: n + 1],
+                           imu_offset_b=np.asarray(p.imu_offset_b))
 
 
 @dataclass(frozen=True)

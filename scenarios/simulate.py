@@ -113,7 +113,8 @@ def _imu_errors(config, rngs, dtheta, dv, ideal):
 def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     """The car world: MuJoCo dynamics at 500 Hz, exact discrete IMU, odometer, GPS."""
     from models.attitude import euler_to_quat, quat_mul
-    from models.car import CarWorld, discrete_imu
+    from models.car import CarWorld
+    from models.world import discrete_imu
     from models.truth import gravity_t, plane_truth
     from sensors import gps as gps_sensor
 
