@@ -144,6 +144,14 @@ class DiscreteRun:
         return (origin + np.einsum("nij,j->ni", R, r_b),
                 vel + np.einsum("nij,nj->ni", R, cross(self.omega[1:][index], r_b)))
 
+    def imu_trajectory(self) -> tuple[np.ndarray, np.ndarray]:
+        """The IMU point's truth: velocity (n+1, 3) m/s from ``point_kinematics`` at the
+        samples, changing linearly over each step (constant acceleration), and the
+        position (n+1, 3) m that integrates it exactly (trapezoid) from MuJoCo's at t0."""
+        site, v_site = self.point_kinematics(self.imu_offset_b)
+        steps = 0.5 * (v_site[:-1] + v_site[1:]) * self.dt
+        return site[0] + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)]), v_site
+
 
 def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
     """E = integral_0^dt exp(-[omega x] tau) dtau (..., 3, 3) for a constant rate (..., 3)."""
@@ -163,42 +171,33 @@ def discrete_imu(run: DiscreteRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray
     """IMU increments per physics step, consistent with the recorded discrete motion.
 
     The IMU sits at the carrier point r = imu_offset_b, fixed to it (sensor = body axes)
-    or on a double-axis gimbal turning at gimbal_rates (outer about body z,
-    inner about x, rad/s; C_s_b = Rz(outer t) Rx(inner t)). Over step k MuJoCo turns the
-    carrier at the constant body rate omega = omega[k+1] (exact here). Its origin's
-    velocity changes from vel[k] to vel[k+1]; MuJoCo applies that change at once, which a
-    strapdown (continuous motion) would integrate in the wrong frame by 1/2 omega x a dt
-    (~0.1 mm/s per s in a 0.5 g turn), so the truth spreads it as a constant acceleration
-    a_k over the step (``DiscreteRun.point_kinematics``). Per step, in body axes:
-    omega_ib = omega + C_t_b(tau) omega_ie,
-    f_b = omega x (omega x r) + C_t_b(tau) (a_k + 2 omega_ie x v_site - g),
-    plus (omega[k+2] - omega[k+1]) x r at the step's end (the rate change), with
-    C_t_b(tau) = exp(-[omega x] tau) R_k^T and g the true gravity at the step
-    (gravity_t (n, 3)). Without a gimbal the integrals are closed-form (the rotation
-    integral E); with one, Simpson's rule in sensor axes (the gimbal turns < 1e-3 rad per
-    step, error ~1e-15). Returns dtheta (n, 3) rad and dv (n, 3) m/s in the sensor frame.
+    or on a double-axis gimbal turning at gimbal_rates (outer about body z, inner about x,
+    rad/s; C_s_b = Rz(outer t) Rx(inner t)). Over step k MuJoCo turns the carrier at the
+    constant body rate omega = omega[k+1]: the attitude is exact. MuJoCo changes the
+    velocities at once at each step; a strapdown (continuous motion) would integrate such
+    jumps in the wrong frame (1/2 omega x dv per step: ~0.1 mm/s per s in a car's turn,
+    cm/s on a ship's 33 m lever arm), so the truth moves the IMU point with a constant
+    acceleration a_k over each step, between its velocities at the samples
+    (``DiscreteRun.imu_trajectory``). Per step, in body axes:
+    omega_ib = omega + C_t_b(tau) omega_ie,  f_b = C_t_b(tau) (a_k + 2 omega_ie x v - g),
+    C_t_b(tau) = exp(-[omega x] tau) R_k^T, g the true gravity at the step (gravity_t
+    (n, 3)). Without a gimbal the integrals are closed-form (the rotation integral E); with
+    one, Simpson's rule in sensor axes (the gimbal turns < 1e-3 rad per step, error
+    ~1e-15). Returns dtheta (n, 3) rad and dv (n, 3) m/s in the sensor frame.
     """
-    r = np.asarray(run.imu_offset_b)
     dt = run.dt
-    R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) chassis to plane at t_k
+    R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) carrier to plane at t_k
     Rt = np.swapaxes(R[:-1], -1, -2)
     w = run.omega[1:-1]                        # (n, 3) rate over step k
-    v0, v1 = run.vel[:-2], run.vel[1:-1]       # origin velocity at the step's start/end
-    R_mid = R[:-1] @ (np.eye(3) + 0.5 * dt * skew(w))
-    v_site_mid = 0.5 * (v0 + v1) + np.einsum("nij,nj->ni", R_mid, cross(w, r))
-    force_t = (v1 - v0) / dt + 2.0 * cross(omega_ie_t, v_site_mid) - gravity_t
-    rate_jump = cross(run.omega[2:] - w, r)
-    centripetal = cross(w, cross(w, r))
+    _, v_site = run.imu_trajectory()
+    force_t = ((v_site[1:] - v_site[:-1]) / dt
+               + 2.0 * cross(omega_ie_t, 0.5 * (v_site[1:] + v_site[:-1])) - gravity_t)
     outer_rate, inner_rate = gimbal_rates
     if outer_rate == 0.0 and inner_rate == 0.0:
         E = rotation_integral(w, dt)           # (n, 3, 3)
         dtheta = w * dt + np.einsum("nij,j->ni", E @ Rt, omega_ie_t)
-        dv = centripetal * dt + np.einsum("nij,nj->ni", E @ Rt, force_t) + rate_jump
-        return dtheta, dv
+        return dtheta, np.einsum("nij,nj->ni", E @ Rt, force_t)
     from models.attitude import rot_x, rot_z, rotvec_to_dcm
-
-    def C_s_b(t: np.ndarray) -> np.ndarray:
-        return rot_z(outer_rate * t) @ rot_x(inner_rate * t)
 
     t0 = run.t[:-1]
     dtheta = np.zeros_like(w)
@@ -206,12 +205,11 @@ def discrete_imu(run: DiscreteRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray
     for tau, weight in ((0.0, dt / 6), (dt / 2, 4 * dt / 6), (dt, dt / 6)):
         C_t_b = rotvec_to_dcm(-w * tau) @ Rt
         omega_b = w + np.einsum("nij,j->ni", C_t_b, omega_ie_t)
-        f_b = centripetal + np.einsum("nij,nj->ni", C_t_b, force_t)
+        f_b = np.einsum("nij,nj->ni", C_t_b, force_t)
         inner = inner_rate * (t0 + tau)
         omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
                                np.cos(inner) * outer_rate], -1)
-        C = C_s_b(t0 + tau)
+        C = rot_z(outer_rate * (t0 + tau)) @ rot_x(inner)
         dtheta += weight * (np.einsum("nji,nj->ni", C, omega_b) + omega_bs_s)
         dv += weight * np.einsum("nji,nj->ni", C, f_b)
-    dv += np.einsum("nji,nj->ni", C_s_b(run.t[1:]), rate_jump)
     return dtheta, dv

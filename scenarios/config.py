@@ -9,15 +9,16 @@ from typing import Any
 
 from models.car import VehicleMotion
 from models.ship import ShipSwayMotion
+from models.waves import WaveShipMotion
 from models.units import arcsec, deg
 from sensors.encoder import GimbalEncoderSpec
 from sensors.gps import GPS_PRESETS, GpsSpec
 from sensors.imu import IMU_PRESETS, ImuSpec
 from sensors.odometer import ODOMETER_PRESETS, OdometerSpec
 
-WORLDS = ("car", "ship-prescribed")
-CAR_PHYSICS_RATE = 500.0
-"""The car's MuJoCo rate, Hz (2 ms steps); its IMU rate must divide it."""
+WORLDS = ("car", "ship-prescribed", "ship-waves")
+PHYSICS_RATE = {"car": 500.0, "ship-waves": 500.0}
+"""MuJoCo rates of the dynamic worlds, Hz; their IMU rate must divide it."""
 
 DATA_DIR = Path(__file__).parent / "data"
 
@@ -85,7 +86,7 @@ class ScenarioConfig:
     imu_preset: str
     imu: ImuSpec
     encoder: GimbalEncoderSpec
-    motion: ShipSwayMotion | VehicleMotion
+    motion: ShipSwayMotion | VehicleMotion | WaveShipMotion
     random_linear_phase: bool
     odometer: OdometerSpec | None = None
     gps: GpsSpec | None = None
@@ -121,11 +122,12 @@ class ScenarioConfig:
         if abs(self.duration * self.imu_rate - self.imu_samples) > 1e-6 or self.imu_samples < 2:
             raise ConfigError(f"run.duration = {self.duration:g} s must be a whole number (>= 2)"
                               f" of IMU intervals of {self.imu_interval:g} s")
-        if self.world == "car":
-            ratio = CAR_PHYSICS_RATE / self.imu_rate
+        if self.world in PHYSICS_RATE:
+            rate = PHYSICS_RATE[self.world]
+            ratio = rate / self.imu_rate
             if abs(ratio - round(ratio)) > 1e-9:
-                raise ConfigError(f"run.imu_rate = {self.imu_rate:g} Hz must divide the car's "
-                                  f"physics rate {CAR_PHYSICS_RATE:g} Hz (e.g. 500, 250, 100, 50)")
+                raise ConfigError(f"run.imu_rate = {self.imu_rate:g} Hz must divide the "
+                                  f"{self.world} physics rate {rate:g} Hz")
             try:
                 self.motion.check()
             except ValueError as exc:
@@ -178,6 +180,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
                           + ", ".join(sorted(IMU_PRESETS)))
     if world == "car":
         motion_obj, random_phase = _dataclass_from(VehicleMotion, motion, "motion"), False
+    elif world == "ship-waves":
+        motion_obj, random_phase = _dataclass_from(WaveShipMotion, motion, "motion"), False
     else:
         phase = motion.pop("linear_phase", "random")
         random_phase = phase == "random"

@@ -82,8 +82,8 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     """Simulate one episode of the scenario."""
     if seed < 0:
         raise ConfigError(f"seed = {seed} must be >= 0")
-    if config.world == "car":
-        return _simulate_car(config, seed, ideal)
+    if config.world in ("car", "ship-waves"):
+        return _simulate_dynamic(config, seed, ideal)
     rngs = episode_rngs(seed)
     world = make_world(config, rngs["motion"])
     plane = TangentPlane(config.latitude, config.longitude, config.height)
@@ -110,22 +110,26 @@ def _imu_errors(config, rngs, dtheta, dv, ideal):
     return dtheta, dv, realization
 
 
-def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
-    """The car world: MuJoCo dynamics at 500 Hz, exact discrete IMU, odometer, GPS."""
+def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
+    """A dynamic world (the car, the ship in waves; both at 500 Hz): MuJoCo's discrete
+    steps, the exact discrete IMU, and the world's odometer, GPS and encoders."""
     from models.attitude import euler_to_quat, quat_mul
-    from models.car import CarWorld
-    from models.world import discrete_imu
     from models.truth import gravity_t, plane_truth
+    from models.world import discrete_imu
     from sensors import gps as gps_sensor
 
     rngs = episode_rngs(seed)
     motion = config.motion
-    params = motion.car_params()
-    world = CarWorld(params, motion.make_track(), motion.profile(),
-                     roughness_seed=int(rngs["motion"].integers(2 ** 31)))
+    if config.world == "car":
+        from models.car import CarWorld
+        world = CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
+                         roughness_seed=int(rngs["motion"].integers(2 ** 31)))
+    else:
+        from models.waves import WaveShipWorld
+        world = WaveShipWorld(motion, rngs["motion"])
     run = world.run(config.duration)
     plane = TangentPlane(config.latitude, config.longitude, config.height)
-    site, v_site = run.point_kinematics(params.imu_offset_b)
+    site, v_site = run.imu_trajectory()
     rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
     dtheta, dv = discrete_imu(run, plane.omega_ie_t,
                               gravity_t(plane, 0.5 * (site[:-1] + site[1:])), rates)
@@ -141,7 +145,7 @@ def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     truth = plane_truth(plane, run.t[idx], site[idx], v_site[idx], run.quat[idx],
                         q_s_t[idx], gimbal[idx])
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
-    extra = {"cross_track": run.cross_track[idx]}
+    extra = {} if run.cross_track is None else {"cross_track": run.cross_track[idx]}
     if config.odometer is not None:
         odo = config.odometer
         scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
@@ -151,7 +155,7 @@ def _simulate_car(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     if config.gps is not None:
         spec = config.gps
         g_idx = np.arange(0, run.t.size, int(round(1.0 / (spec.rate * run.dt))))
-        antenna, v_antenna = run.point_kinematics(params.gps_antenna_b, g_idx)
+        antenna, v_antenna = run.point_kinematics(motion.gps_antenna_b, g_idx)
         at = plane_truth(plane, run.t[g_idx], antenna, v_antenna, run.quat[g_idx],
                          run.quat[g_idx], gimbal[g_idx])
         if ideal:

@@ -154,7 +154,7 @@ def test_imu_rate_must_divide_physics_rate():
     proc = subprocess.run([sys.executable, "-m", "scenarios.cli", "simulate",
                            "ring-road-odometer", "--imu-rate", "300", "--out", "x.npz"],
                           capture_output=True, text=True)
-    assert proc.returncode == 2 and "must divide the car's physics rate 500 Hz" in proc.stderr
+    assert proc.returncode == 2 and "must divide the car physics rate 500 Hz" in proc.stderr
 
 
 def test_fidelity_car_with_gimbal():

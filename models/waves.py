@@ -1,0 +1,201 @@
+"""A ship floating in irregular waves (the wave-driven motion source of SPEC 4.1).
+
+The hull is a MuJoCo free body. Each physics step the hydrodynamic generalised forces are
+applied at its centre of mass (``xfrc_applied``): linear hydrostatic restoring in heave,
+roll and pitch towards the instantaneous wave surface at the hull (elevation and slopes
+of a JONSWAP sea, Froude-Krylov long-wave approximation), linear radiation damping, weak
+surge/sway/yaw restoring (mooring or dynamic positioning) and a heading autopilot. The
+stiffnesses come from the natural periods, so the hull's response has the paper's
+character (periods 5-8 s, degrees of roll and pitch, decimetres of heave) with the
+randomness of a real sea. The rotary IMU sits on the double-axis gimbal at the lever arm;
+MuJoCo's discrete steps are recorded and ``models.world.discrete_imu`` makes the
+increments.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from models.attitude import quat_to_dcm, quat_to_euler
+from models.ship import ship_mjcf
+from models.units import deg
+from models.world import DiscreteRun
+
+RHO_G = 1025.0 * 9.81
+
+
+@dataclass(frozen=True)
+class WaveShipMotion:
+    """Sea state, hull response and IMU mounting. Heights m, periods s, angles rad,
+    rates rad/s.
+
+    significant_wave_height, peak_period, peak_enhancement (JONSWAP gamma) and
+    wave_direction (direction the waves travel, CCW from north); components: number of
+    wave frequencies; heave/roll/pitch natural periods and damping ratios; heading: the
+    autopilot's yaw (PSINS, CCW). lever_arm_b: IMU from the hull origin (R, F, U);
+    gimbal rates as in ``ShipSwayMotion``.
+    """
+
+    significant_wave_height: float = 1.5
+    peak_period: float = 7.0
+    peak_enhancement: float = 3.3
+    wave_direction: float = 60 * deg
+    components: int = 60
+    heave_period: float = 8.0
+    roll_period: float = 6.0
+    pitch_period: float = 5.0
+    damping_ratio: float = 0.15
+    heading: float = 30 * deg
+    lever_arm_b: tuple[float, float, float] = (10.0, 30.0, 10.0)
+    gimbal_outer_rate: float = 6 * deg
+    gimbal_inner_rate: float = 18 * deg
+
+    def check(self) -> None:
+        """Raise ValueError naming the field for values outside their range."""
+        for name, low, high in (("significant_wave_height", 0.0, 15.0),
+                                ("peak_period", 2.0, 25.0), ("heave_period", 2.0, 30.0),
+                                ("roll_period", 2.0, 30.0), ("pitch_period", 2.0, 30.0),
+                                ("damping_ratio", 0.01, 2.0), ("peak_enhancement", 1.0, 7.0)):
+            value = getattr(self, name)
+            if not low <= value <= high:
+                raise ValueError(f"motion.{name} = {value:g} is out of range [{low:g}, {high:g}]")
+        if not 4 <= self.components <= 1000:
+            raise ValueError(f"motion.components = {self.components} is out of range [4, 1000]")
+
+    @property
+    def has_gimbal(self) -> bool:
+        return self.gimbal_outer_rate != 0.0 or self.gimbal_inner_rate != 0.0
+
+    def gimbal_angles(self, t: np.ndarray) -> np.ndarray:
+        """Gimbal angles (N, 2) rad (outer, inner) at times t (N,) s."""
+        return np.stack([self.gimbal_outer_rate * t, self.gimbal_inner_rate * t], -1)
+
+
+def jonswap_components(motion: WaveShipMotion, rng: np.random.Generator
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Amplitudes (m), angular frequencies (rad/s), wavenumbers (rad/m, deep water) and
+    random phases of the sea, from the JONSWAP spectrum (DNV-RP-C205 3.5.5) sampled at
+    jittered frequencies between 0.5 and 3 peak frequencies."""
+    wp = 2 * math.pi / motion.peak_period
+    n = motion.components
+    edges = np.linspace(0.5 * wp, 3.0 * wp, n + 1)
+    w = edges[:-1] + rng.uniform(0.0, 1.0, n) * np.diff(edges)
+    Hs, gamma = motion.significant_wave_height, motion.peak_enhancement
+    sigma = np.where(w <= wp, 0.07, 0.09)
+    pm = 5.0 / 16.0 * Hs ** 2 * wp ** 4 * w ** -5 * np.exp(-1.25 * (w / wp) ** -4)
+    S = (1 - 0.287 * math.log(gamma)) * pm * gamma ** np.exp(-0.5 * ((w - wp) / (sigma * wp)) ** 2)
+    amplitude = np.sqrt(2 * S * np.diff(edges))
+    return amplitude, w, w ** 2 / 9.81, rng.uniform(0.0, 2 * math.pi, n)
+
+
+class WaveShipWorld:
+    """The 003 ship's MJCF (hull, gimbal, IMU) as a dynamic body in a random sea."""
+
+    def __init__(self, motion: WaveShipMotion, rng: np.random.Generator,
+                 timestep: float = 0.002, force_period: int = 5) -> None:
+        """timestep: MuJoCo step, s (several per IMU sample keep the discrete rotation
+        smooth for the strapdown's coning term); force_period: steps between updates of
+        the hydrodynamic wrench (held in between; 100 Hz by default)."""
+        self.motion = motion
+        self.force_period = force_period
+        xml = ship_mjcf(motion.lever_arm_b).replace(
+            '<option timestep="0.005" integrator="implicitfast"/>',
+            f'<option timestep="{timestep:g}" integrator="implicitfast"/>')
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self._hull = m.body("carrier").id
+        self._gimbal_dof = [m.joint(j).dofadr[0] for j in ("gimbal_outer", "gimbal_inner")]
+        self._gimbal_qpos = [m.joint(j).qposadr[0] for j in ("gimbal_outer", "gimbal_inner")]
+        self.sea = jonswap_components(motion, rng)
+        mass = float(m.body_subtreemass[self._hull])
+        inertia = self._hull_inertia()
+        w = {name: 2 * math.pi / getattr(motion, f"{name}_period")
+             for name in ("heave", "roll", "pitch")}
+        zeta = motion.damping_ratio
+        self._k = np.array([mass * w["heave"] ** 2, inertia[0] * w["roll"] ** 2,
+                            inertia[1] * w["pitch"] ** 2])
+        self._c = 2 * zeta * np.array([mass * w["heave"], inertia[0] * w["roll"],
+                                       inertia[1] * w["pitch"]])
+        # Weak horizontal restoring (60 s period) and a heading autopilot (10 s), both
+        # critically damped.
+        self._k_h, self._c_h = mass * (2 * math.pi / 60) ** 2, 2 * mass * (2 * math.pi / 60)
+        self._k_yaw = inertia[2] * (2 * math.pi / 10) ** 2
+        self._c_yaw = 2 * inertia[2] * (2 * math.pi / 10)
+        self._mass = mass
+        self._gravity = -float(m.opt.gravity[2])
+
+    def _hull_inertia(self) -> np.ndarray:
+        """Principal moments (3,) kg m^2 of the whole ship about its centre of mass."""
+        mujoco.mj_forward(self.model, self.data)
+        return self.model.body_inertia[self._hull].copy() * (
+            self.model.body_subtreemass[self._hull] / self.model.body_mass[self._hull])
+
+    def wave_at(self, t: float, xy: np.ndarray) -> tuple[float, np.ndarray]:
+        """Elevation (m) and slope (dη/dE, dη/dN) of the sea at plane point xy, time t."""
+        a, w, k, phase = self.sea
+        beta = self.motion.wave_direction
+        direction = np.array([-math.sin(beta), math.cos(beta)])  # CCW from north
+        arg = k * (xy @ direction) - w * t + phase
+        eta = float(np.sum(a * np.cos(arg)))
+        slope = -float(np.sum(a * k * np.sin(arg))) * direction
+        return eta, slope
+
+    def run(self, duration: float) -> DiscreteRun:
+        """Float for duration (s), recording every physics step; the gimbal turns at its
+        rates (velocity-level kinematic drive: its joints are reset each step)."""
+        m, d, motion = self.model, self.data, self.motion
+        dt = m.opt.timestep
+        n = int(round(duration / dt))
+        d.qpos[3:7] = [math.cos(motion.heading / 2), 0.0, 0.0, math.sin(motion.heading / 2)]
+        mujoco.mj_forward(m, d)
+        qpos_hist = np.empty((n + 1, m.nq))
+        qvel_hist = np.empty((n + 2, m.nv))
+        rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
+        qpos, qvel, xfrc = d.qpos, d.qvel, d.xfrc_applied[self._hull]
+        for k in range(n + 1):
+            t = k * dt
+            for i in range(2):  # kinematic gimbal: angle = rate t exactly
+                qpos[self._gimbal_qpos[i]] = rates[i] * t
+                qvel[self._gimbal_dof[i]] = rates[i]
+            qpos_hist[k] = qpos
+            qvel_hist[k] = qvel
+            if k % self.force_period == 0:
+                xfrc[:] = self._hydrodynamic_wrench(t)
+            mujoco.mj_step(m, d)
+        qvel_hist[n + 1] = qvel
+        return DiscreteRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
+                           quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3],
+                           omega=qvel_hist[:, 3:6],
+                           imu_offset_b=np.asarray(motion.lever_arm_b, dtype=float))
+
+    def _hydrodynamic_wrench(self, t: float) -> np.ndarray:
+        """Force and torque (6,) in world axes at the hull's centre of mass."""
+        d = self.data
+        q = d.qpos[3:7]
+        C = quat_to_dcm(q)
+        pitch, roll, yaw = quat_to_euler(q)
+        centre = d.xipos[self._hull]
+        eta, slope = self.wave_at(t, centre[:2])
+        v = d.qvel[0:3]
+        w_b = d.qvel[3:6]
+        # Wave slopes seen along the body's right (x) and forward (y) axes.
+        slope_right = slope @ C[:2, 0]
+        slope_fwd = slope @ C[:2, 1]
+        force = np.array([-self._k_h * centre[0] - self._c_h * v[0],
+                          -self._k_h * centre[1] - self._c_h * v[1],
+                          self._mass * self._gravity - self._k[0] * (centre[2] - eta)
+                          - self._c[0] * v[2]])
+        # Roll (about body y) follows the sideways slope, pitch (about x) the lengthwise.
+        torque_b = np.array([-self._k[2] * (pitch - math.atan(slope_fwd)) - self._c[2] * w_b[0],
+                             -self._k[1] * (roll + math.atan(slope_right)) - self._c[1] * w_b[1],
+                             -self._k_yaw * _wrap(yaw - self.motion.heading)
+                             - self._c_yaw * w_b[2]])
+        return np.concatenate([force, C @ torque_b])
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
