@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from models.world import IMU_SENSORS_MJCF, DiscreteRun
+from models.world import IMU_SENSORS_MJCF, DiscreteRun, GimbalRates
 
 G_LATERAL_MAX = 0.4 * 9.81
 """Largest steady lateral acceleration the controller is allowed to ask, m/s^2."""
@@ -301,7 +301,7 @@ class CarWorld:
 
 
 @dataclass(frozen=True)
-class VehicleMotion:
+class VehicleMotion(GimbalRates):
     """What the car does: track "ring" (radius = circle radius, m) or "figure8"
     (radius = half-width of the lemniscate, m); speed, m/s; still until start_time, s;
     brake at stop_time, s; accel, m/s^2; road roughness RMS, m; IMU and GPS-antenna
@@ -317,17 +317,9 @@ class VehicleMotion:
     imu_offset_b: tuple[float, float, float] = (0.0, 0.3, 0.2)
     gps_antenna_b: tuple[float, float, float] = (0.0, -0.5, 1.2)
     gimbal_outer_rate: float = 0.0
-    """Optional double-axis gimbal under the IMU (outer about body z, inner about x,
-    C_s_b = Rz(outer) Rx(inner)), rad/s; both 0 for a strapdown IMU."""
+    """Optional double-axis gimbal under the IMU (``GimbalRates``), rad/s; both 0 for a
+    strapdown IMU."""
     gimbal_inner_rate: float = 0.0
-
-    @property
-    def has_gimbal(self) -> bool:
-        return self.gimbal_outer_rate != 0.0 or self.gimbal_inner_rate != 0.0
-
-    def gimbal_angles(self, t: np.ndarray) -> np.ndarray:
-        """Gimbal angles (N, 2) rad (outer, inner) at times t (N,) s."""
-        return np.stack([self.gimbal_outer_rate * t, self.gimbal_inner_rate * t], -1)
 
     def make_track(self) -> Track:
         if self.track == "ring":

@@ -16,11 +16,11 @@ import numpy as np
 
 from models.attitude import euler_to_quat
 from models.units import deg
-from models.world import IMU_SENSORS_MJCF, PrescribedWorld
+from models.world import IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld
 
 
 @dataclass(frozen=True)
-class ShipSwayMotion:
+class ShipSwayMotion(GimbalRates):
     """Prescribed ship motion. Angles rad, periods s, lengths m, rates rad/s.
 
     Each attitude channel is ``mean + amplitude cos(2 pi t / period + phase)``.
@@ -152,8 +152,7 @@ class ShipWorld(PrescribedWorld):
         qacc = np.empty((n, 8))
         qpos[:, 0:3] = pos
         qpos[:, 3:7] = euler_to_quat(euler)
-        qpos[:, 7] = motion.gimbal_outer_rate * t
-        qpos[:, 8] = motion.gimbal_inner_rate * t
+        qpos[:, 7:9] = motion.gimbal_angles(t)
         qvel[:, 0:3] = vel
         qvel[:, 3:6] = omega
         qvel[:, 6] = motion.gimbal_outer_rate

@@ -22,13 +22,13 @@ import numpy as np
 from models.attitude import quat_to_dcm, quat_to_euler
 from models.ship import ship_mjcf
 from models.units import deg
-from models.world import DiscreteRun
+from models.world import DiscreteRun, GimbalRates
 
 RHO_G = 1025.0 * 9.81
 
 
 @dataclass(frozen=True)
-class WaveShipMotion:
+class WaveShipMotion(GimbalRates):
     """Sea state, hull response and IMU mounting. Heights m, periods s, angles rad,
     rates rad/s.
 
@@ -64,14 +64,6 @@ class WaveShipMotion:
                 raise ValueError(f"motion.{name} = {value:g} is out of range [{low:g}, {high:g}]")
         if not 4 <= self.components <= 1000:
             raise ValueError(f"motion.components = {self.components} is out of range [4, 1000]")
-
-    @property
-    def has_gimbal(self) -> bool:
-        return self.gimbal_outer_rate != 0.0 or self.gimbal_inner_rate != 0.0
-
-    def gimbal_angles(self, t: np.ndarray) -> np.ndarray:
-        """Gimbal angles (N, 2) rad (outer, inner) at times t (N,) s."""
-        return np.stack([self.gimbal_outer_rate * t, self.gimbal_inner_rate * t], -1)
 
 
 def jonswap_components(motion: WaveShipMotion, rng: np.random.Generator

@@ -42,6 +42,24 @@ class WorldSamples:
     gimbal_angles: np.ndarray
 
 
+class GimbalRates:
+    """Mixin for motions that carry ``gimbal_outer_rate`` and ``gimbal_inner_rate`` (rad/s):
+    the double-axis gimbal under the IMU (outer about body z, inner about x,
+    C_s_b = Rz(outer) Rx(inner)), turning at constant rates from zero at t = 0."""
+
+    gimbal_outer_rate: float
+    gimbal_inner_rate: float
+
+    @property
+    def has_gimbal(self) -> bool:
+        return self.gimbal_outer_rate != 0.0 or self.gimbal_inner_rate != 0.0
+
+    def gimbal_angles(self, t: np.ndarray) -> np.ndarray:
+        """Gimbal angles (N, 2) rad (outer, inner) at times t (N,) s."""
+        t = np.asarray(t, dtype=float)
+        return np.stack([self.gimbal_outer_rate * t, self.gimbal_inner_rate * t], -1)
+
+
 # Sensors every world's MJCF declares, in this order, on site "imu" and body "carrier".
 IMU_SENSORS_MJCF = """
   <sensor>
@@ -165,8 +183,8 @@ def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
     return dt * np.eye(3) - a * K + b * (K @ K)
 
 
-def discrete_imu(run: DiscreteRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
-                 gimbal_rates: tuple[float, float] = (0.0, 0.0)
+def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
+                 gravity_t: np.ndarray, gimbal_rates: tuple[float, float] = (0.0, 0.0)
                  ) -> tuple[np.ndarray, np.ndarray]:
     """IMU increments per physics step, consistent with the recorded discrete motion.
 
@@ -178,7 +196,8 @@ def discrete_imu(run: DiscreteRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray
     jumps in the wrong frame (1/2 omega x dv per step: ~0.1 mm/s per s in a car's turn,
     cm/s on a ship's 33 m lever arm), so the truth moves the IMU point with a constant
     acceleration a_k over each step, between its velocities at the samples
-    (``DiscreteRun.imu_trajectory``). Per step, in body axes:
+    (``DiscreteRun.imu_trajectory``, whose velocities v_site (n+1, 3) are passed in).
+    Per step, in body axes:
     omega_ib = omega + C_t_b(tau) omega_ie,  f_b = C_t_b(tau) (a_k + 2 omega_ie x v - g),
     C_t_b(tau) = exp(-[omega x] tau) R_k^T, g the true gravity at the step (gravity_t
     (n, 3)). Without a gimbal the integrals are closed-form (the rotation integral E); with
@@ -189,7 +208,6 @@ def discrete_imu(run: DiscreteRun, omega_ie_t: np.ndarray, gravity_t: np.ndarray
     R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) carrier to plane at t_k
     Rt = np.swapaxes(R[:-1], -1, -2)
     w = run.omega[1:-1]                        # (n, 3) rate over step k
-    _, v_site = run.imu_trajectory()
     force_t = ((v_site[1:] - v_site[:-1]) / dt
                + 2.0 * cross(omega_ie_t, 0.5 * (v_site[1:] + v_site[:-1])) - gravity_t)
     outer_rate, inner_rate = gimbal_rates

@@ -131,7 +131,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     plane = TangentPlane(config.latitude, config.longitude, config.height)
     site, v_site = run.imu_trajectory()
     rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
-    dtheta, dv = discrete_imu(run, plane.omega_ie_t,
+    dtheta, dv = discrete_imu(run, v_site, plane.omega_ie_t,
                               gravity_t(plane, 0.5 * (site[:-1] + site[1:])), rates)
     gimbal = motion.gimbal_angles(run.t)
     # C_s_b = Rz(outer) Rx(inner): the PSINS Euler DCM with pitch = inner, yaw = outer.
