@@ -1,17 +1,60 @@
-"""Adaptation policies: how a filter forms its predicted covariance from the innovation
-statistics. They only rescale the predicted covariance; the Kalman loop is elsewhere.
+"""Adaptation policies: what a filter does with its innovation statistics. A policy sees
+one ``AdaptationContext`` per update (innovation, S, P_xz, the propagated covariance, Q,
+R, the measurement's axes, a motion flag) and returns an ``Adjustment``: a new predicted
+covariance and/or a new R (the filter then redoes the update with them). The Kalman loop
+is elsewhere (``estimators.filters``).
 
 All act on a batch of B episodes. Notation (ALGORITHMS.md section 2.2):
-``PhiPPhi = Phi P Phi^T``, ``Q`` the discrete process noise, ``H`` the measurement matrix,
-``R`` the measurement noise, ``e`` the innovation ``z - H x_pred``. The innovation
-covariance is estimated recursively (003 eq. 50, with C_{k-1} on the right-hand side):
-C_1 = e e^T, C_k = (rho C_{k-1} + e e^T) / (1 + rho).
+``PhiPPhi = Phi P Phi^T`` (the propagated covariance without process noise; a sigma-point
+rule's equivalent for a nonlinear process), ``Q`` the discrete process noise, ``H`` the
+measurement matrix (a nonlinear measurement's statistical linearisation
+P_xz^T P_pred^-1), ``R`` the measurement noise, ``e`` the innovation ``z - z_hat``. The
+innovation covariance is estimated recursively (003 eq. 50, with C_{k-1} on the
+right-hand side): C_1 = e e^T, C_k = (rho C_{k-1} + e e^T) / (1 + rho).
 """
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
+
+AXES = ("measurement", "local-level")
+"""Axes along which per-axis factors are formed: the measurement's own (the papers), or
+local East, North, Up (the observation's ``axes`` rotation)."""
+
+
+@dataclass(frozen=True)
+class AdaptationContext:
+    """What a policy sees at one update, for B episodes, m measurements, n states.
+
+    innovation (B, m), zero where missing; valid (B, m) measurement present; S (B, m, m)
+    innovation covariance with the unadapted P_pred; P_xz (B, n, m); PhiPPhi (B, n, n);
+    Q (B, n, n); R (B, m, m); H (B, m, n); axes (B, m, m) rotation of the measurement
+    axes to E, N, U or None; motion (B,) bool or None; t (s).
+    """
+
+    innovation: np.ndarray
+    valid: np.ndarray
+    S: np.ndarray
+    P_xz: np.ndarray
+    PhiPPhi: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    H: np.ndarray
+    axes: np.ndarray | None = None
+    motion: np.ndarray | None = None
+    t: float = 0.0
+
+
+@dataclass(frozen=True)
+class Adjustment:
+    """A policy's decision: P_pred (B, n, n) and R (B, m, m), None = unchanged
+    (PhiPPhi + Q and the model's R); factors (B, k) for the record."""
+
+    P_pred: np.ndarray | None
+    R: np.ndarray | None
+    factors: np.ndarray
 
 
 def _sandwich(H: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -32,29 +75,24 @@ def _diagonal_selection(H: np.ndarray) -> np.ndarray:
 
 
 class AdaptationPolicy(ABC):
-    """Maps the predicted pieces to P_pred, and reports its factors (B, k)."""
+    """Decides P_pred and R from the update's context; reports its factors (B, k)."""
 
     n_factors: int = 0
     name: str = "none"
-    basis: np.ndarray | None = None
-    """Optional (B, m, m) rotation of the measurement axes in which per-axis factors are
-    formed (set by the model each epoch); None: the measurement's own axes (the papers)."""
 
-    def reset(self, batch: int, m: int) -> None:
-        """Start a new batch of episodes with m measurements."""
+    def reset(self, batch: int) -> None:
+        """Start a new batch of episodes."""
 
     @abstractmethod
-    def predicted_covariance(self, PhiPPhi: np.ndarray, Q: np.ndarray, H: np.ndarray,
-                             R: np.ndarray, innovation: np.ndarray
-                             ) -> tuple[np.ndarray, np.ndarray]:
-        """P_pred (B, n, n) and the factors used (B, n_factors)."""
+    def adapt(self, ctx: AdaptationContext) -> Adjustment:
+        """The adjustment for this update."""
 
 
 class NoAdaptation(AdaptationPolicy):
-    """The conventional Kalman filter: P_pred = Phi P Phi^T + Q."""
+    """The conventional Kalman filter: P_pred = Phi P Phi^T + Q, R as modelled."""
 
-    def predicted_covariance(self, PhiPPhi, Q, H, R, innovation):
-        return PhiPPhi + Q, np.zeros((PhiPPhi.shape[0], 0))
+    def adapt(self, ctx):
+        return Adjustment(None, None, np.zeros((ctx.PhiPPhi.shape[0], 0)))
 
 
 class InnovationFading(AdaptationPolicy):
@@ -73,15 +111,22 @@ class InnovationFading(AdaptationPolicy):
         self.rho, self.floor, self.cap = rho, floor, cap
         self._C: np.ndarray | None = None
 
-    def reset(self, batch: int, m: int) -> None:
+    def reset(self, batch: int) -> None:
         self._C = None
-        if self.n_factors != 1:
-            self.n_factors = m  # one factor per measured state
 
-    def innovation_covariance(self, innovation: np.ndarray) -> np.ndarray:
-        """Update and return C_k (B, m, m) from the innovation e_k (B, m)."""
+    def innovation_covariance(self, innovation: np.ndarray,
+                              valid: np.ndarray | None = None) -> np.ndarray:
+        """Update and return C_k (B, m, m) from the innovation e_k (B, m). An episode with
+        a missing component (valid (B, m) False) keeps its C_{k-1}; a change of m restarts
+        the estimate."""
         outer = innovation[..., :, None] * innovation[..., None, :]
-        self._C = outer if self._C is None else (self.rho * self._C + outer) / (1.0 + self.rho)
+        if self._C is None or self._C.shape != outer.shape:
+            new = outer
+        else:
+            new = (self.rho * self._C + outer) / (1.0 + self.rho)
+        if valid is not None and self._C is not None and self._C.shape == outer.shape:
+            new = np.where(valid.all(-1)[:, None, None], new, self._C)
+        self._C = new
         return self._C
 
     def _bound(self, factors: np.ndarray) -> np.ndarray:
@@ -102,33 +147,43 @@ class SingleFadingFactor(InnovationFading):
         super().__init__(rho, floor, cap)
         self.beta = beta
 
-    def factors(self, PhiPPhi, Q, H, R, innovation) -> np.ndarray:
-        C = self.innovation_covariance(innovation)
-        N = C - _sandwich(H, Q) - self.beta * R
-        M = _sandwich(H, PhiPPhi)
-        lam = np.trace(N, axis1=-2, axis2=-1) / np.trace(M, axis1=-2, axis2=-1)
-        return self._bound(lam)[:, None]
-
-    def predicted_covariance(self, PhiPPhi, Q, H, R, innovation):
-        lam = self.factors(PhiPPhi, Q, H, R, innovation)
-        return lam[:, :, None] * PhiPPhi + Q, lam
+    def adapt(self, ctx):
+        C = self.innovation_covariance(ctx.innovation, ctx.valid)
+        N = C - _sandwich(ctx.H, ctx.Q) - self.beta * ctx.R
+        M = _sandwich(ctx.H, ctx.PhiPPhi)
+        lam = self._bound(np.trace(N, axis1=-2, axis2=-1) / np.trace(M, axis1=-2, axis2=-1))
+        lam = lam[:, None]
+        return Adjustment(lam[:, :, None] * ctx.PhiPPhi + ctx.Q, None, lam)
 
 
 class _PerAxisFading(InnovationFading):
     """Shared part of MAKF and IMAKF: factors per measured state,
     lambda_i = max(1, sqrt(N_ii / (s_i^2 J_ii))), applied as the congruence
-    L J L with L = diag(lambda_1..m, 1, ..., 1). With a ``basis`` U (orthogonal, H = [I 0])
-    the factors are formed along U's axes and L's measured block is U^T diag(lambda) U."""
+    L J L with L = diag(lambda_1..m, 1, ..., 1). With axes = "local-level" (H = [I 0])
+    the factors are formed along E, N, U, U = the observation's axes rotation, and L's
+    measured block is U^T diag(lambda) U."""
 
-    n_factors = 0  # set to m at reset
+    n_factors = 3
 
-    def _factors(self, N: np.ndarray, J: np.ndarray, H: np.ndarray
+    def __init__(self, rho: float = 0.95, floor: float = 1.0, cap: float = np.inf,
+                 axes: str = "measurement") -> None:
+        super().__init__(rho, floor, cap)
+        if axes not in AXES:
+            raise ValueError(f"axes = {axes!r}; valid: " + ", ".join(AXES))
+        self.axes = axes
+
+    def _factors(self, N: np.ndarray, J: np.ndarray, ctx: AdaptationContext
                  ) -> tuple[np.ndarray, np.ndarray]:
         """Factors (B, m) and the full congruence matrix L (B, n, n)."""
-        s = _diagonal_selection(H)
+        s = _diagonal_selection(ctx.H)
         m, n = s.shape[-1], J.shape[-1]
+        self.n_factors = m
         J_mm = s[..., :, None] * J[..., :m, :m] * s[..., None, :]
-        U = self.basis
+        U = None
+        if self.axes == "local-level":
+            if ctx.axes is None:
+                raise ValueError("local-level fading factors need the observation's axes")
+            U = ctx.axes
         if U is not None:
             if np.any(s != 1.0):
                 raise ValueError("a factor basis needs H = [I 0]")
@@ -152,10 +207,10 @@ class MultipleFadingFactors(_PerAxisFading):
 
     name = "multiple-fading"
 
-    def predicted_covariance(self, PhiPPhi, Q, H, R, innovation):
-        C = self.innovation_covariance(innovation)
-        lam, L = self._factors(C - _sandwich(H, Q) - R, PhiPPhi, H)
-        return L @ PhiPPhi @ np.swapaxes(L, -1, -2) + Q, lam
+    def adapt(self, ctx):
+        C = self.innovation_covariance(ctx.innovation, ctx.valid)
+        lam, L = self._factors(C - _sandwich(ctx.H, ctx.Q) - ctx.R, ctx.PhiPPhi, ctx)
+        return Adjustment(L @ ctx.PhiPPhi @ np.swapaxes(L, -1, -2) + ctx.Q, None, lam)
 
 
 class ImprovedMultipleFadingFactors(_PerAxisFading):
@@ -165,8 +220,8 @@ class ImprovedMultipleFadingFactors(_PerAxisFading):
 
     name = "improved-multiple-fading"
 
-    def predicted_covariance(self, PhiPPhi, Q, H, R, innovation):
-        C = self.innovation_covariance(innovation)
-        J = PhiPPhi + Q
-        lam, L = self._factors(C - R, J, H)
-        return L @ J @ np.swapaxes(L, -1, -2), lam
+    def adapt(self, ctx):
+        C = self.innovation_covariance(ctx.innovation, ctx.valid)
+        J = ctx.PhiPPhi + ctx.Q
+        lam, L = self._factors(C - ctx.R, J, ctx)
+        return Adjustment(L @ J @ np.swapaxes(L, -1, -2), None, lam)

@@ -12,11 +12,13 @@ from typing import Callable
 
 import numpy as np
 
-from estimators.rules import (CubatureRule, IntegrationRule, LinearRule,
-                              SparseGridGaussHermiteRule, UnscentedRule)
-from estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors,
-                                   InnovationFading,
+from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
+                                   ImprovedMultipleFadingFactors, InnovationFading,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
+from estimators.model import Observation, Transition, wrap_angle
+from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule,
+                              LinearizationRule, ReducedGaussHermiteRule,
+                              SparseGridGaussHermiteRule, UnscentedRule)
 
 
 def _cholesky_ok(A: np.ndarray) -> np.ndarray:
@@ -36,139 +38,265 @@ def _cholesky_ok(A: np.ndarray) -> np.ndarray:
 
 @dataclass
 class FilterHealth:
-    """Per-episode status: diverged (B,), time of divergence (B,) s (nan if none), reason."""
+    """Per-episode status: diverged (B,), time of divergence (B,) s (nan if none), reason;
+    repairs (B,): predicted covariances made positive definite by flooring their
+    eigenvalues (rules with negative weights, ALGORITHMS 3.2 caution 1), each logged."""
 
     diverged: np.ndarray
     time: np.ndarray
     reason: list[str]
+    repairs: np.ndarray
 
     @classmethod
     def healthy(cls, batch: int) -> "FilterHealth":
-        return cls(np.zeros(batch, bool), np.full(batch, np.nan), [""] * batch)
+        return cls(np.zeros(batch, bool), np.full(batch, np.nan), [""] * batch,
+                   np.zeros(batch, int))
 
     def flag(self, mask: np.ndarray, t: float, reason: str) -> None:
         for b in np.flatnonzero(mask & ~self.diverged):
             self.diverged[b], self.time[b], self.reason[b] = True, t, reason
 
 
+def _floor_eigenvalues(P: np.ndarray, relative: float = 1e-12) -> np.ndarray:
+    """P (B, n, n) with eigenvalues floored at relative x trace / n."""
+    vals, vecs = np.linalg.eigh(P)
+    floor = relative * np.maximum(np.trace(P, axis1=-2, axis2=-1), 0.0) / P.shape[-1]
+    vals = np.maximum(vals, np.maximum(floor, 1e-300)[:, None])
+    return (vecs * vals[:, None, :]) @ np.swapaxes(vecs, -1, -2)
+
+
 class GaussianFilter:
     """Kalman-type filter with a pluggable integration rule and adaptation policy.
 
-    State x (B, n), covariance P (B, n, n). ``predict`` then ``update`` per epoch; the
-    adaptation policy forms P_pred at the update, from the innovation.
+    State x (B, n), covariance P (B, n, n). Per epoch ``predict(transition)`` then
+    ``update(observation)`` (``estimators.model``): the rule computes the moments of the
+    model's maps, the adaptation policy may change P_pred and R from the update's
+    context, missing measurement components (NaN) are left out of the update. Only
+    numerical failure (a covariance not positive definite, a NaN state) marks an
+    episode diverged; it is then frozen while the rest of the batch goes on.
     """
 
     def __init__(self, name: str, rule: IntegrationRule, adaptation: AdaptationPolicy,
                  joseph: bool = True) -> None:
         self.name, self.rule, self.adaptation, self.joseph = name, rule, adaptation, joseph
-        self.factor_axes = "measurement"
         self.x = self.P = None
         self.factors = np.zeros((0, 0))
         self.innovation = self.S = None
+        self.angles: tuple[int, ...] = ()
         self._pending: tuple[np.ndarray, np.ndarray] | None = None
 
-    def reset(self, x0: np.ndarray, P0: np.ndarray, m: int) -> None:
-        """Start B episodes from x0 (B, n), P0 (B, n, n); m measurements per update."""
+    def reset(self, x0: np.ndarray, P0: np.ndarray, angles: tuple[int, ...] = ()) -> None:
+        """Start B episodes from x0 (B, n), P0 (B, n, n); angles: indices of angle states
+        (wrapped to (-pi, pi])."""
         self.x = np.array(x0, dtype=float)
         self.P = 0.5 * (P0 + np.swapaxes(P0, -1, -2))
+        self.angles = tuple(angles)
         batch = self.x.shape[0]
         self.health = FilterHealth.healthy(batch)
-        self.adaptation.reset(batch, m)
+        self.adaptation.reset(batch)
         self.factors = np.zeros((batch, self.adaptation.n_factors))
+        self.innovation = self.S = None
         self._pending = None
         bad = ~_cholesky_ok(self.P)
         self.health.flag(bad, 0.0, "initial covariance not positive definite")
 
-    def predict(self, Phi: np.ndarray, Q: np.ndarray) -> None:
-        """Propagate with transition Phi (B, n, n) and discrete process noise Q (B, n, n)."""
+    @property
+    def live(self) -> np.ndarray:
+        """(B,) episodes not diverged."""
+        return ~self.health.diverged
+
+    def predict(self, transition: Transition) -> None:
+        """Propagate through the process map (its noise Q is added at the update, where
+        the adaptation policy may fade it)."""
         if self._pending is not None:  # no update since the last predict
             self.P = self._pending[0] + self._pending[1]
-        x_pred, PhiPPhi = self.rule.predict(self.x, self.P, Phi)
-        live = ~self.health.diverged
+        x_pred, PhiPPhi, _ = self.rule.moments(transition, self.x, self.P)
+        if self.angles:
+            idx = list(self.angles)
+            x_pred[:, idx] = wrap_angle(x_pred[:, idx])
+        live = self.live
         self.x = np.where(live[:, None], x_pred, self.x)
-        self._pending = (PhiPPhi, Q)
+        self._pending = (PhiPPhi, transition.noise)
 
-    def update(self, z: np.ndarray, H: np.ndarray, R: np.ndarray, t: float) -> None:
-        """Measurement update with z (B, m), H (B, m, n), R (B, m, m) at time t (s)."""
+    def update(self, observation: Observation) -> None:
+        """Measurement update at observation.t (s); missing components are skipped."""
         if self._pending is None:
             raise RuntimeError("update() needs a predict() first")
         PhiPPhi, Q = self._pending
         self._pending = None
-        live = ~self.health.diverged
-        self.health.flag(~np.all(np.isfinite(z), axis=-1) & live, t, "measurement is NaN/inf")
-        live = ~self.health.diverged
-        z = np.where(live[:, None], z, 0.0)
-        innovation = z - np.einsum("bij,bj->bi", H, self.x)
-        P_pred, factors = self.adaptation.predicted_covariance(PhiPPhi, Q, H, R, innovation)
+        t, live = observation.t, self.live
+        valid = observation.valid() & live[:, None]
+        z = np.where(valid, observation.z, 0.0)
+        R = observation.noise
+        P_pred = PhiPPhi + Q
         P_pred = 0.5 * (P_pred + np.swapaxes(P_pred, -1, -2))
-        Ht = np.swapaxes(H, -1, -2)
-        S = H @ P_pred @ Ht + R
+        P_pred = self._repair(P_pred, t)
+        z_hat, P_zz, P_xz = self.rule.moments(observation, self.x, P_pred)
+        innovation = z - z_hat
+        if observation.angles:
+            idx = list(observation.angles)
+            innovation[:, idx] = wrap_angle(innovation[:, idx])
+        innovation = np.where(valid, innovation, 0.0)
+        if observation.linear:
+            H = observation.matrix
+        else:  # statistical linearisation, for the policies
+            H = np.swapaxes(np.linalg.solve(P_pred, P_xz), -1, -2)
+        ctx = AdaptationContext(innovation=innovation, valid=valid, S=P_zz + R, P_xz=P_xz,
+                                PhiPPhi=PhiPPhi, Q=Q, R=R, H=H, axes=observation.axes,
+                                motion=observation.motion, t=t)
+        adjustment = self.adaptation.adapt(ctx)
+        silent = ~valid.any(-1)[:, None, None]  # no measurement: no adaptation either
+        if adjustment.R is not None:
+            R = np.where(silent, R, adjustment.R)
+        if adjustment.P_pred is not None:
+            adapted = np.where(silent, P_pred, adjustment.P_pred)
+            P_pred = 0.5 * (adapted + np.swapaxes(adapted, -1, -2))
+            P_pred = self._repair(P_pred, t)
+            if not observation.linear:  # re-update with the adapted prediction
+                z_hat, P_zz, P_xz = self.rule.moments(observation, self.x, P_pred)
+                innovation = z - z_hat
+                if observation.angles:
+                    innovation[:, idx] = wrap_angle(innovation[:, idx])
+                innovation = np.where(valid, innovation, 0.0)
+        # Missing components: zero rows of H / columns of P_xz, unit diagonal in S and
+        # R, so that their gain columns are exactly zero.
+        missing = ~valid
+        any_missing = bool(missing.any())
+        if any_missing:
+            cross_valid = valid[:, :, None] & valid[:, None, :]
+            eye = np.broadcast_to(np.eye(R.shape[-1]), R.shape)
+            R = np.where(cross_valid, R, eye)
+        if observation.linear:
+            H = observation.matrix
+            if any_missing:
+                H = np.where(valid[:, :, None], H, 0.0)
+            HP = H @ P_pred
+            S = HP @ np.swapaxes(H, -1, -2) + R
+        else:
+            if any_missing:
+                P_xz = np.where(valid[:, None, :], P_xz, 0.0)
+                P_zz = np.where(cross_valid, P_zz, 0.0)
+            HP = np.swapaxes(P_xz, -1, -2)
+            S = P_zz + R
         S_ok = _cholesky_ok(S)
         self.health.flag(~S_ok & live, t, "innovation covariance not positive definite")
-        live &= S_ok
+        live = live & S_ok
         S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
-        K = np.swapaxes(np.linalg.solve(S_safe, H @ P_pred), -1, -2)
+        K = np.swapaxes(np.linalg.solve(S_safe, HP), -1, -2)
         x_new = self.x + np.einsum("bij,bj->bi", K, innovation)
-        I_KH = -(K @ H)
-        I_KH[..., np.arange(I_KH.shape[-1]), np.arange(I_KH.shape[-1])] += 1.0
-        if self.joseph:
+        if self.angles:
+            x_new[:, list(self.angles)] = wrap_angle(x_new[:, list(self.angles)])
+        if observation.linear and self.joseph:
+            I_KH = -(K @ H)
+            I_KH[..., np.arange(I_KH.shape[-1]), np.arange(I_KH.shape[-1])] += 1.0
             P_new = I_KH @ P_pred @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
         else:
-            P_new = I_KH @ P_pred
+            P_new = P_pred - K @ S @ np.swapaxes(K, -1, -2)
         P_new = 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
         P_ok = _cholesky_ok(P_new) & np.all(np.isfinite(x_new), axis=-1)
         self.health.flag(~P_ok & live, t, "covariance not positive definite or state NaN")
         live &= P_ok
         self.x = np.where(live[:, None], x_new, self.x)
         self.P = np.where(live[:, None, None], P_new, self.P)
-        self.innovation, self.S = innovation, S
-        self.factors = factors
+        self.innovation, self.S, self.valid = innovation, S, valid
+        self.factors = adjustment.factors
+
+    def _repair(self, P_pred: np.ndarray, t: float) -> np.ndarray:
+        """Floor the eigenvalues of a predicted covariance that is not positive definite
+        (negative-weight rules), counting each repair; a non-finite one is flagged."""
+        ok = _cholesky_ok(P_pred)
+        live = self.live
+        bad = ~ok & live
+        if not bad.any():
+            return P_pred
+        finite = np.all(np.isfinite(P_pred), axis=(-2, -1))
+        self.health.flag(bad & ~finite, t, "predicted covariance NaN/inf")
+        fix = bad & finite
+        if fix.any():
+            repaired = P_pred.copy()
+            repaired[fix] = _floor_eigenvalues(P_pred[fix])
+            self.health.repairs[fix] += 1
+            still = ~_cholesky_ok(repaired) & fix
+            self.health.flag(still, t, "predicted covariance not positive definite")
+            return repaired
+        return P_pred
 
 
 @dataclass(frozen=True)
 class FilterEntry:
-    """A named filter of the catalogue: rule and adaptation factories, its source, and
-    the axes along which a model forms per-axis fading factors ("measurement": the
-    measurement's own axes, as printed in the papers; "local-level": E, N, U)."""
+    """A named filter of the catalogue: rule and adaptation factories and its source.
+    fading: the adaptation takes the fading-factor options (rho, floor, cap)."""
 
     rule: Callable[[], IntegrationRule]
     adaptation: Callable[..., AdaptationPolicy]
     description: str
-    factor_axes: str = "measurement"
+    fading: bool = False
+
+
+def _local_level(policy):
+    return lambda **options: policy(axes="local-level", **options)
 
 
 FILTERS: dict[str, FilterEntry] = {
-    "kf": FilterEntry(LinearRule, NoAdaptation, "conventional Kalman filter"),
-    "sakf": FilterEntry(LinearRule, SingleFadingFactor,
-                        "single fading factor (Xia et al. 1994)"),
-    "makf": FilterEntry(LinearRule, MultipleFadingFactors,
-                        "multiple fading factors (003 eq. 37)"),
-    "imakf": FilterEntry(LinearRule, ImprovedMultipleFadingFactors,
-                         "improved multiple fading factors (003 eqs. 41-42, 50)"),
-    "makf-n": FilterEntry(LinearRule, MultipleFadingFactors,
-                          "MAKF with factors along local E, N, U", "local-level"),
-    "imakf-n": FilterEntry(LinearRule, ImprovedMultipleFadingFactors,
-                           "IMAKF with factors along local E, N, U", "local-level"),
+    "kf": FilterEntry(LinearizationRule, NoAdaptation, "conventional Kalman filter"),
+    "ekf": FilterEntry(LinearizationRule, NoAdaptation,
+                       "extended KF (model Jacobian or central differences)"),
+    "sakf": FilterEntry(LinearizationRule, SingleFadingFactor,
+                        "single fading factor (Xia et al. 1994)", True),
+    "makf": FilterEntry(LinearizationRule, MultipleFadingFactors,
+                        "multiple fading factors (003 eq. 37)", True),
+    "imakf": FilterEntry(LinearizationRule, ImprovedMultipleFadingFactors,
+                         "improved multiple fading factors (003 eqs. 41-42, 50)", True),
+    "makf-n": FilterEntry(LinearizationRule, _local_level(MultipleFadingFactors),
+                          "MAKF with factors along local E, N, U", True),
+    "imakf-n": FilterEntry(LinearizationRule, _local_level(ImprovedMultipleFadingFactors),
+                           "IMAKF with factors along local E, N, U", True),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
-    "sghkf-2": FilterEntry(lambda: SparseGridGaussHermiteRule(2), NoAdaptation,
-                           "sparse-grid Gauss-Hermite KF, level 2"),
-    "sghkf-3": FilterEntry(lambda: SparseGridGaussHermiteRule(3), NoAdaptation,
-                           "sparse-grid Gauss-Hermite KF, level 3"),
+}
+SPARSE_GRID_LEVELS = range(1, 7)
+TENSOR_GH_ORDERS = range(1, 10)
+_PATTERNS = {
+    "sghkf": ("sparse-grid Gauss-Hermite KF, level L (m_l = 2l - 1)", SPARSE_GRID_LEVELS,
+              "sparse-grid level", SparseGridGaussHermiteRule),
+    "ghkf": ("tensor-product Gauss-Hermite KF of order m", TENSOR_GH_ORDERS,
+             "Gauss-Hermite order", GaussHermiteRule),
 }
 
 
+class UnknownFilter(KeyError):
+    """An unknown filter name or an invalid level/order; str() is the plain message."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def filter_names() -> list[str]:
+    """The registry's names and name patterns, for messages."""
+    return sorted(FILTERS) + [f"{p}-N" for p in _PATTERNS]
+
+
+def filter_entry(name: str) -> FilterEntry:
+    """The catalogue entry of a filter name (including sghkf-L and ghkf-m); a one-line
+    KeyError for unknown names or an invalid level/order."""
+    if name in FILTERS:
+        return FILTERS[name]
+    family, _, number = name.rpartition("-")
+    if family in _PATTERNS:
+        description, valid, what, rule = _PATTERNS[family]
+        if not (number.isdigit() and int(number) in valid):
+            raise UnknownFilter(f"filter {name!r}: {what} must be an integer in "
+                           f"[{valid.start}, {valid.stop - 1}]")
+        value = int(number)
+        return FilterEntry(lambda: rule(value), NoAdaptation,
+                           description.replace(" L ", f" {value} ").replace(" m", f" {value}"))
+    raise UnknownFilter(f"unknown filter {name!r}; known filters: " + ", ".join(filter_names()))
+
+
 def make_filter(name: str, **adaptation_options) -> GaussianFilter:
-    """A filter of the registry by name; unknown names list the known ones."""
-    try:
-        entry = FILTERS[name]
-    except KeyError:
-        raise KeyError(f"unknown filter {name!r}; known filters: "
-                       + ", ".join(sorted(FILTERS))) from None
-    if adaptation_options and not issubclass(entry.adaptation, InnovationFading):
-        adaptation_options = {}  # options of the fading factors do not apply
-    adaptation = entry.adaptation(**adaptation_options)
-    filt = GaussianFilter(name, entry.rule(), adaptation)
-    filt.factor_axes = entry.factor_axes
-    return filt
+    """A filter of the registry by name; fading-factor options (rho, floor, cap) apply
+    to the fading filters only."""
+    entry = filter_entry(name)
+    adaptation = entry.adaptation(**(adaptation_options if entry.fading else {}))
+    return GaussianFilter(name, entry.rule(), adaptation)

@@ -15,12 +15,13 @@ dV_k = dV - [g x] T phi + [g x] Psi2 eps + Psi nabla, phi_k = phi - Psi eps.
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.alignment import FineResult, run_alignment
 from estimators.filters import GaussianFilter
+from estimators.model import FilterModel, Observation, StateLayout, Transition
 from estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
 from models.attitude import rotvec_to_dcm, skew
@@ -28,6 +29,8 @@ from models.attitude import rotvec_to_dcm, skew
 V, PHI, EPS, NABLA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 _I3 = np.eye(3)
 N_STATES = 12
+LAYOUT = StateLayout({"velocity_integral": V, "misalignment": PHI, "gyro_bias": EPS,
+                      "accel_bias": NABLA})
 
 
 @dataclass(frozen=True)
@@ -109,44 +112,22 @@ def stack_inputs(inputs: list[FineInputs]) -> FineInputs:
                                         for name in ("C_s_s0", "dW", "Psi", "Psi2")})
 
 
-@dataclass
-class FineResult:
-    """Time series of a fine-alignment run for B episodes at the K+1 step boundaries.
-
-    t (K+1,) s since t0; C_s_n (B, K+1, 3, 3) estimated attitude; P (B, K+1, 12, 12) in
-    the state's frames; sigma_n (B, K+1, 3) rad, 1-sigma misalignment along E, N, U;
-    x (B, K+1, 12) estimate before feedback; factors (B, K, k); diverged (B,), time (B,),
-    reason; seconds_per_epoch: wall time per filter epoch for the whole batch.
-    """
-
-    t: np.ndarray
-    C_s_n: np.ndarray
-    P: np.ndarray
-    sigma_n: np.ndarray
-    x: np.ndarray
-    factors: np.ndarray
-    diverged: np.ndarray
-    diverged_time: np.ndarray
-    diverged_reason: list[str]
-    seconds_per_epoch: float
-
-
-class InertialFineAlignment:
-    """One filter on a batch of episodes, advanced one epoch at a time (a campaign runs
-    all epochs; the gymnasium env steps it and may rescale the noise each epoch).
+class InertialFineModel(FilterModel):
+    """The 12-state inertial-frame model for a batch of episodes (linear: Phi and H).
 
     C_s_i_start: (B, 3, 3) initial attitude estimate C_s^i(t1); lat (rad) and h (m): the
-    known position of each episode's IMU, (B,) or scalar. Per-axis fading factors
-    are formed along the measurement's inertial axes (as in 003), or along local East,
-    North, Up when the filter's factor_axes is "local-level".
+    known position of each episode's IMU, (B,) or scalar. The observation's axes are
+    C_i^n, for per-axis fading factors along local East, North, Up.
     """
 
-    def __init__(self, filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
-                 tuning: FineTuning, lat: np.ndarray | float, h: np.ndarray | float) -> None:
-        self.filt, self.inputs, self.tuning = filt, inputs, tuning
-        t = inputs.t
+    layout = LAYOUT
+
+    def __init__(self, inputs: FineInputs, C_s_i_start: np.ndarray, tuning: FineTuning,
+                 lat: np.ndarray | float, h: np.ndarray | float) -> None:
+        self.inputs, self.tuning = inputs, tuning
+        t = self.t = inputs.t
         self.batch, self.epochs = inputs.dW.shape[:2]
-        B, K = self.batch, self.epochs
+        B = self.batch
         # C_s0^i estimate per episode: C_s^i(t1) C_s0^s(t1).
         self.C_s0_i = C_s_i_start @ np.swapaxes(inputs.C_s_s0[:, 0], -1, -2)
         lat = np.broadcast_to(np.asarray(lat, dtype=float), (B,))[:, None]
@@ -157,33 +138,14 @@ class InertialFineAlignment:
         self._V_grav = gravity_velocity_i(t[None], lat, h)           # (B, K+1, 3)
         self._H = np.broadcast_to(np.hstack([np.eye(3), np.zeros((3, 9))]), (B, 3, N_STATES))
         self._R_n = np.diag(np.square(tuning.measurement_sigma))
-        self._local_level_factors = filt.factor_axes == "local-level"
-        filt.reset(np.zeros((B, N_STATES)), tuning.initial_covariance(self._C_n_i[:, 0]), m=3)
         self._Z_acc = np.zeros((B, 3))
-        self.C_s_n = np.empty((B, K + 1, 3, 3))
-        self.P = np.empty((B, K + 1, N_STATES, N_STATES))
-        self.x = np.zeros((B, K + 1, N_STATES))
-        self.factors = np.zeros((B, K, filt.adaptation.n_factors))
-        self.k = 0
-        self.compute_seconds = 0.0
-        self._record()
 
-    @property
-    def done(self) -> bool:
-        return self.k >= self.epochs
+    def initial(self):
+        return (np.zeros((self.batch, N_STATES)),
+                self.tuning.initial_covariance(self._C_n_i[:, 0]))
 
-    def _record(self) -> None:
-        k = self.k
-        self.C_s_n[:, k] = self._C_i_n[:, k] @ self.C_s0_i @ self.inputs.C_s_s0[:, k]
-        self.P[:, k] = self.filt.P
-
-    def step(self, q_scale: tuple[float, float] = (1.0, 1.0), r_scale: float = 1.0) -> None:
-        """One epoch. q_scale multiplies the (gyro, accelerometer) white-noise variances,
-        r_scale the measurement-noise variance (1 = as tuned)."""
-        if self.done:
-            raise RuntimeError("the fine alignment is finished")
-        start = time.perf_counter()
-        k, B, T, filt, inputs = self.k, self.batch, self.tuning.step, self.filt, self.inputs
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        B, T, inputs = self.batch, self.tuning.step, self.inputs
         q_g = self.tuning.gyro_noise_density ** 2 * q_scale[0]
         q_a = self.tuning.accel_noise_density ** 2 * q_scale[1]
         Psi_i = self.C_s0_i @ inputs.Psi[:, k]
@@ -200,44 +162,33 @@ class InertialFineAlignment:
         Q[:, V, PHI] = -q_g * T ** 2 / 2.0 * G
         Q[:, PHI, V] = Q[:, V, PHI].swapaxes(-1, -2)
         Q[:, PHI, PHI] = q_g * T * _I3
-        filt.predict(Phi, Q)
+        return Transition(noise=Q, matrix=Phi)
 
-        self._Z_acc += np.einsum("bij,bj->bi", self.C_s0_i, inputs.dW[:, k])
+    def observation(self, k, r_scale=1.0):
+        self._Z_acc += np.einsum("bij,bj->bi", self.C_s0_i, self.inputs.dW[:, k])
         z = self._Z_acc - (self._V_grav[:, k + 1] - self._V_grav[:, 0])
         R = r_scale * self._C_n_i[:, k + 1] @ self._R_n @ self._C_i_n[:, k + 1]
-        if self._local_level_factors:
-            filt.adaptation.basis = self._C_i_n[:, k + 1]
-        filt.update(z, self._H, R, float(inputs.t[k + 1]))
-        self.factors[:, k] = filt.factors
-        self.x[:, k + 1] = filt.x
-        # Feedback of the misalignment into this filter's C_s0^i.
-        live = ~filt.health.diverged
-        correction = rotvec_to_dcm(np.where(live[:, None], filt.x[:, PHI], 0.0))
-        self.C_s0_i = correction @ self.C_s0_i
-        filt.x[:, PHI] = np.where(live[:, None], 0.0, filt.x[:, PHI])
-        self.k += 1
-        self._record()
-        self.compute_seconds += time.perf_counter() - start
+        return Observation(noise=R, matrix=self._H, z=z, t=float(self.inputs.t[k + 1]),
+                           axes=self._C_i_n[:, k + 1])
 
-    def result(self) -> FineResult:
-        """The run so far (all epochs once done)."""
-        k = self.k
-        P_phi_n = (self._C_i_n[:, : k + 1] @ self.P[:, : k + 1, PHI, PHI]
-                   @ self._C_n_i[:, : k + 1])
-        sigma_n = np.sqrt(np.maximum(np.diagonal(P_phi_n, axis1=-2, axis2=-1), 0.0))
-        health = self.filt.health
-        return FineResult(t=self.inputs.t[: k + 1], C_s_n=self.C_s_n[:, : k + 1],
-                          P=self.P[:, : k + 1], sigma_n=sigma_n, x=self.x[:, : k + 1],
-                          factors=self.factors[:, :k], diverged=health.diverged.copy(),
-                          diverged_time=health.time.copy(), diverged_reason=list(health.reason),
-                          seconds_per_epoch=self.compute_seconds / max(k, 1))
+    def feedback(self, x, P, live):
+        """The misalignment into this filter's C_s0^i (C_s0^i <- exp([phi x]) C_s0^i)."""
+        correction = rotvec_to_dcm(np.where(live[:, None], x[:, PHI], 0.0))
+        self.C_s0_i = correction @ self.C_s0_i
+        x = x.copy()
+        x[:, PHI] = np.where(live[:, None], 0.0, x[:, PHI])
+        return x, P
+
+    def attitude(self, k, x):
+        return self._C_i_n[:, k] @ self.C_s0_i @ self.inputs.C_s_s0[:, k]
+
+    def attitude_sigma(self, k, P):
+        P_phi_n = self._C_i_n[:, k] @ P[:, PHI, PHI] @ self._C_n_i[:, k]
+        return np.sqrt(np.maximum(np.diagonal(P_phi_n, axis1=-2, axis2=-1), 0.0))
 
 
 def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np.ndarray,
                        tuning: FineTuning, lat: np.ndarray | float, h: np.ndarray | float
                        ) -> FineResult:
-    """Run one filter over all epochs for a batch (see InertialFineAlignment)."""
-    run = InertialFineAlignment(filt, inputs, C_s_i_start, tuning, lat, h)
-    while not run.done:
-        run.step()
-    return run.result()
+    """Run one filter over all epochs for a batch (see InertialFineModel)."""
+    return run_alignment(filt, InertialFineModel(inputs, C_s_i_start, tuning, lat, h))

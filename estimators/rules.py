@@ -1,12 +1,18 @@
-"""Gaussian integration rules: points xi_i and weights W_i for N(0, I_n) (ALGORITHMS.md
-3.2). A rule only returns points and weights; the generic filter propagates the
-Gaussian through them (``SigmaPointRule.predict``).
+"""Gaussian integration rules (ALGORITHMS.md 3.2, 4.2). A rule computes the moments of a
+map of a Gaussian (the dynamax shape): given y = map(x) with x ~ N(mean, cov), it returns
+E[y], Cov[y] and Cov[x, y]; the generic filter adds the noise. A linear map (a model
+that declares its matrix) is exact under every rule; nonlinear maps are where the rules
+differ.
 
+- LinearizationRule: the EKF: the map at the mean and its Jacobian (analytic, or central
+  differences).
 - UnscentedRule(alpha, beta, kappa): scaled unscented transform, 2n+1 points.
 - CubatureRule: third-degree spherical-radial cubature, 2n points.
 - GaussHermiteRule(order): tensor product of m-point Gauss-Hermite rules, m^n points.
 - SparseGridGaussHermiteRule(level): Smolyak sparse grid of Gauss-Hermite rules, exact
   for polynomials of total degree <= 2L - 1.
+- ReducedGaussHermiteRule(order): quadrature over the map's nonlinear states only, exact
+  conditional moments over the rest (the conditionally linear partition, 000 eqs. 40-57).
 """
 from __future__ import annotations
 
@@ -17,27 +23,61 @@ from math import comb
 
 import numpy as np
 
+from estimators.model import GaussianMap, wrap_angle
+
 MAX_POINTS = 2_000_000
 
 
+Moments = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _symmetric(A: np.ndarray) -> np.ndarray:
+    return 0.5 * (A + np.swapaxes(A, -1, -2))
+
+
+def _linear_moments(fmap: GaussianMap, mean: np.ndarray, cov: np.ndarray) -> Moments:
+    """Exact moments of y = M x: M mean, M cov M^T, cov M^T."""
+    M = fmap.matrix
+    Mt = np.swapaxes(M, -1, -2)
+    return np.einsum("bij,bj->bi", M, mean), M @ cov @ Mt, cov @ Mt
+
+
 class IntegrationRule(ABC):
-    """How the filter propagates a Gaussian through the process model."""
+    """Moments of a map of a Gaussian (see the module docstring)."""
 
     name: str
+    has_negative_weights: bool = False
+
+    def moments(self, fmap: GaussianMap, mean: np.ndarray, cov: np.ndarray) -> Moments:
+        """E[y] (B, d), Cov[y] (B, d, d) without the map's noise, Cov[x, y] (B, n, d) for
+        y = fmap(x), x ~ N(mean (B, n), cov (B, n, n))."""
+        if fmap.linear and fmap.fn is None:
+            return _linear_moments(fmap, mean, cov)
+        return self._moments(fmap, mean, cov)
 
     @abstractmethod
-    def predict(self, x: np.ndarray, P: np.ndarray, Phi: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted mean (B, n) and Phi P Phi^T (B, n, n), without the process noise."""
+    def _moments(self, fmap: GaussianMap, mean: np.ndarray, cov: np.ndarray) -> Moments:
+        """Moments of a map given as a function."""
+
+    def point_count(self, n: int) -> int:
+        """Number of evaluations of the map per episode in dimension n."""
+        return 1
 
 
-class LinearRule(IntegrationRule):
-    """Exact propagation through a linear(ised) model: the KF."""
+class LinearizationRule(IntegrationRule):
+    """First-order linearization at the mean (the EKF): E[y] = f(mean), Cov[y] = J P J^T,
+    Cov[x, y] = P J^T, with J the model's Jacobian or central differences of f."""
 
-    name = "linear"
+    name = "linearization"
 
-    def predict(self, x, P, Phi):
-        return (np.einsum("bij,bj->bi", Phi, x), Phi @ P @ np.swapaxes(Phi, -1, -2))
+    def __init__(self, step: float | np.ndarray = 1e-6) -> None:
+        self.step = step
+
+    def _moments(self, fmap, mean, cov):
+        y = fmap(mean[:, None, :])[:, 0]
+        J = fmap.jacobian_at(mean, self.step)
+        Jt = np.swapaxes(J, -1, -2)
+        return y, J @ cov @ Jt, cov @ Jt
 
 
 @lru_cache(maxsize=None)
@@ -59,24 +99,50 @@ class SigmaPointRule(IntegrationRule):
     """A rule given by points (N, n) and mean/covariance weights (N,)."""
 
     def points(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """xi (N, n), W_mean (N,), W_cov (N,) for dimension n."""
+        """xi (N, n), W_mean (N,), W_cov (N,) for dimension n (computed once per n)."""
+        cache = self.__dict__.setdefault("_point_cache", {})
+        if n not in cache:
+            cache[n] = self._weights(n)
+        return cache[n]
+
+    def _weights(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xi, w = self._points(n)
         return xi, w, w
 
     def _points(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
-    def predict(self, x, P, Phi):
-        """Mean and covariance of Phi x for x ~ N(x, P), from the points."""
-        n = x.shape[-1]
+    def point_count(self, n: int) -> int:
+        return len(self.points(n)[1])
+
+    def _moments(self, fmap, mean, cov):
+        n = mean.shape[-1]
         xi, wm, wc = self.points(n)
-        S = _sqrt_psd(P)
-        chi = x[:, None, :] + np.einsum("bij,kj->bki", S, xi)
-        f = np.einsum("bij,bkj->bki", Phi, chi)
-        mean = np.einsum("k,bki->bi", wm, f)
-        d = f - mean[:, None, :]
-        cov = np.einsum("k,bki,bkj->bij", wc, d, d)
-        return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+        S = _sqrt_psd(cov)
+        chi = mean[:, None, :] + np.einsum("bij,kj->bki", S, xi)
+        centre = int(np.argmin(np.einsum("ki,ki->k", xi, xi)))
+        return weighted_moments(fmap(chi), chi - mean[:, None, :], wm, wc, fmap.angles,
+                                centre)
+
+
+def weighted_moments(y: np.ndarray, dx: np.ndarray, wm: np.ndarray, wc: np.ndarray,
+                     angles: tuple[int, ...] = (), centre: int = 0) -> Moments:
+    """Mean (B, d), covariance (B, d, d) and cross-covariance with x (B, n, d) from mapped
+    points y (B, P, d), point offsets dx = chi - mean (B, P, n) and mean/covariance
+    weights (P,). Angle components of y are averaged around the value at the point
+    ``centre`` (the one nearest the mean) and their residuals wrapped."""
+    if angles:
+        idx = list(angles)
+        ref = y[:, centre:centre + 1, idx]
+        y = y.copy()
+        y[..., idx] = ref + wrap_angle(y[..., idx] - ref)
+    mean = np.einsum("k,bki->bi", wm, y)
+    d = y - mean[:, None, :]
+    if angles:
+        mean[:, idx] = wrap_angle(mean[:, idx])
+    cov = np.einsum("k,bki,bkj->bij", wc, d, d)
+    cross = np.einsum("k,bki,bkj->bij", wc, dx, d)
+    return mean, _symmetric(cov), cross
 
 
 def _sqrt_psd(P: np.ndarray) -> np.ndarray:
@@ -95,10 +161,13 @@ class UnscentedRule(SigmaPointRule):
     W_0^c = W_0 + 1 - alpha^2 + beta, W_j = 1 / (2 (n + lambda)). kappa None means 3 - n."""
 
     def __init__(self, alpha: float = 1.0, beta: float = 2.0, kappa: float | None = 0.0):
+        if not (alpha > 0.0 and np.isfinite(alpha)):
+            raise ValueError(f"unscented alpha must be > 0, got {alpha}")
         self.alpha, self.beta, self.kappa = alpha, beta, kappa
+        self.has_negative_weights = kappa is None or kappa < 0.0 or alpha < 1.0
         self.name = f"unscented(alpha={alpha:g}, beta={beta:g}, kappa={kappa})"
 
-    def points(self, n):
+    def _weights(self, n):
         kappa = 3.0 - n if self.kappa is None else self.kappa
         lam = self.alpha ** 2 * (n + kappa) - n
         scale = np.sqrt(n + lam)
@@ -154,6 +223,7 @@ class SparseGridGaussHermiteRule(SigmaPointRule):
         if growth not in ("odd", "linear"):
             raise ValueError(f"growth must be 'odd' or 'linear', got {growth!r}")
         self.level, self.growth = level, growth
+        self.has_negative_weights = level >= 2
         self.name = f"sparse-grid-gauss-hermite(L={level}, {growth})"
 
     def _m(self, l: int) -> int:
@@ -189,3 +259,50 @@ def _compositions(total: int, parts: int):
     for first in range(1, total - parts + 2):
         for rest in _compositions(total - first, parts - 1):
             yield (first,) + rest
+
+
+class ReducedGaussHermiteRule(IntegrationRule):
+    """Reduced-dimension Gauss-Hermite rule (Morelande & Ristic 2006; 000 eqs. 40-57;
+    ALGORITHMS 4.2): an m-point GH tensor grid over the map's ``nonlinear`` states zeta
+    only; given zeta the map y = F(zeta) x + g(zeta) is linear, so the other states enter
+    through their exact conditional mean and covariance. With P = S S^T (lower Cholesky,
+    zeta ordered first): Theta_i = mean + S[:, :l] xi_i, Sigma_c = S[:, l:] S[:, l:]^T,
+    y_i = F_i Theta_i + g_i, Cov[y] = sum W_i [(y_i - y)(.)^T + F_i Sigma_c F_i^T],
+    Cov[x, y] = sum W_i [(Theta_i - mean)(y_i - y)^T + Sigma_c F_i^T]."""
+
+    def __init__(self, order: int = 7) -> None:
+        if order < 1:
+            raise ValueError(f"Gauss-Hermite order must be >= 1, got {order}")
+        self.order = order
+        self.name = f"reduced-gauss-hermite({order})"
+
+    def _moments(self, fmap, mean, cov):
+        if fmap.conditional is None or not fmap.nonlinear:
+            raise ValueError("the reduced-dimension Gauss-Hermite rule needs the model's "
+                             "conditionally linear form (conditional, nonlinear states)")
+        n = mean.shape[-1]
+        zeta = list(fmap.nonlinear)
+        rest = [i for i in range(n) if i not in zeta]
+        perm = np.array(zeta + rest)
+        l = len(zeta)
+        S = _sqrt_psd(cov[:, perm][:, :, perm])               # lower, zeta first
+        inverse = np.argsort(perm)
+        S_zeta = S[:, :, :l][:, inverse]                       # (B, n, l) original order
+        S_rest = S[:, :, l:][:, inverse]
+        Sigma_c = S_rest @ np.swapaxes(S_rest, -1, -2)          # (B, n, n)
+        p, w = gauss_hermite_1d(self.order)
+        xi = np.array(list(itertools.product(p, repeat=l)))     # (P, l)
+        W = np.prod(np.array(list(itertools.product(w, repeat=l))), axis=1)
+        offsets = np.einsum("bil,kl->bki", S_zeta, xi)          # (B, P, n)
+        theta = mean[:, None, :] + offsets
+        F, g = fmap.conditional(theta[..., zeta])               # (B, P, d, n), (B, P, d)
+        y = np.einsum("bkij,bkj->bki", F, theta) + g
+        centre = int(np.argmin(np.einsum("kl,kl->k", xi, xi)))
+        y_mean, cov_y, cross = weighted_moments(y, offsets, W, W, fmap.angles, centre)
+        F_Sigma = F @ Sigma_c[:, None]                          # (B, P, d, n)
+        cov_y = cov_y + np.einsum("k,bkij,bklj->bil", W, F_Sigma, F)
+        cross = cross + np.einsum("k,bkij->bji", W, F_Sigma)
+        return y_mean, _symmetric(cov_y), cross
+
+    def point_count(self, n: int) -> int:
+        return self.order

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from models.car import VehicleMotion
+from models.platform import StaticPlatformMotion
 from models.ship import ShipSwayMotion
 from models.waves import WaveShipMotion
 from models.units import arcsec, deg
@@ -16,7 +17,7 @@ from sensors.gps import GPS_PRESETS, GpsSpec
 from sensors.imu import IMU_PRESETS, ImuSpec
 from sensors.odometer import ODOMETER_PRESETS, OdometerSpec
 
-WORLDS = ("car", "ship-prescribed", "ship-waves")
+WORLDS = ("car", "ship-prescribed", "ship-waves", "static-platform")
 PHYSICS_RATE = {"car": 500.0, "ship-waves": 500.0}
 """MuJoCo rates of the dynamic worlds, Hz; their IMU rate must divide it."""
 
@@ -86,7 +87,7 @@ class ScenarioConfig:
     imu_preset: str
     imu: ImuSpec
     encoder: GimbalEncoderSpec
-    motion: ShipSwayMotion | VehicleMotion | WaveShipMotion
+    motion: ShipSwayMotion | VehicleMotion | WaveShipMotion | StaticPlatformMotion
     random_linear_phase: bool
     odometer: OdometerSpec | None = None
     gps: GpsSpec | None = None
@@ -134,6 +135,14 @@ class ScenarioConfig:
                 raise ConfigError(str(exc)) from None
             return
         m = self.motion
+        if self.world == "static-platform":
+            _check_range("motion.yaw", m.yaw_mean / deg, -360.0, 360.0, "deg")
+            _check_range("motion.pitch", m.pitch / deg, -10.0, 10.0, "deg")
+            _check_range("motion.roll", m.roll / deg, -10.0, 10.0, "deg")
+            if m.has_gimbal:
+                raise ConfigError("motion: the static platform has no gimbal; "
+                                  "gimbal rates must be 0 deg/s")
+            return
         for name in ("yaw_period", "pitch_period", "roll_period"):
             _check_range(f"motion.{name}", getattr(m, name), 0.0, 1e4, "s", low_open=True)
         for name in ("yaw_amplitude", "pitch_amplitude", "roll_amplitude"):
@@ -182,6 +191,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         motion_obj, random_phase = _dataclass_from(VehicleMotion, motion, "motion"), False
     elif world == "ship-waves":
         motion_obj, random_phase = _dataclass_from(WaveShipMotion, motion, "motion"), False
+    elif world == "static-platform":
+        motion_obj, random_phase = _platform_motion(raw["motion"]), False
     else:
         phase = motion.pop("linear_phase", "random")
         random_phase = phase == "random"
@@ -221,6 +232,21 @@ def _dataclass_from(cls, values: dict[str, Any], section: str):
         return cls(**values)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{section}: {exc}") from None
+
+
+_PLATFORM_KEYS = {"yaw_deg": "yaw_mean", "pitch_deg": "pitch", "roll_deg": "roll"}
+
+
+def _platform_motion(table: dict[str, Any]) -> StaticPlatformMotion:
+    """The static platform's attitude from its [motion] table (keys in deg; absent keys
+    take the defaults)."""
+    unknown = sorted(set(table) - set(_PLATFORM_KEYS))
+    if unknown:
+        raise ConfigError(f"motion.{unknown[0]} is not a parameter of the static platform;"
+                          " valid: " + ", ".join(sorted(_PLATFORM_KEYS)))
+    values = _to_si(table, "motion")
+    return StaticPlatformMotion(**{_PLATFORM_KEYS[key + "_deg"]: value
+                                   for key, value in values.items()})
 
 
 def _sensor(values: dict[str, Any], presets: dict, cls, section: str):

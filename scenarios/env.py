@@ -20,21 +20,20 @@ count per arcminute, heading errors per 10 arcminutes.
 from __future__ import annotations
 
 from collections import OrderedDict
-from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from estimators.adaptation import InnovationFading
-from estimators.filters import FILTERS, make_filter
-from estimators.inertial_fine import EPS, NABLA, PHI, InertialFineAlignment
+from estimators.filters import UnknownFilter, filter_entry, make_filter
+from estimators.alignment import AlignmentRun
 from estimators.metrics import misalignment
 from models.units import arcmin
 from scenarios.config import ConfigError
-from scenarios.paper003 import (Paper003Experiment, PreparedEpisode, analyse_run,
-                                episode_metrics, prepare_episode, start_attitude)
+from scenarios import campaign
+from scenarios.campaign import PreparedEpisode
+from scenarios.experiments import experiment_for
 from scenarios.simulate import episode_rngs, make_world
 
 OBS_SIZE = 16
@@ -61,32 +60,30 @@ class AlignmentEnv(gym.Env):
                  render_mode: str | None = None, video_path: str | None = None,
                  mistuning: dict[str, float] | None = None, cache_episodes: int = 8,
                  render_size: tuple[int, int] = (240, 320)) -> None:
-        if estimator not in FILTERS:
-            raise ConfigError(f"unknown filter {estimator!r}; known filters: "
-                              + ", ".join(sorted(FILTERS)))
+        try:
+            filter_entry(estimator)
+        except UnknownFilter as exc:
+            raise ConfigError(str(exc)) from None
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode = {render_mode!r}; valid: None, 'rgb_array'")
         if not (episode_length > 0 and epoch_length > 0 and episode_length >= epoch_length):
             raise ConfigError("need episode_length >= epoch_length > 0 s, got "
                               f"{episode_length}, {epoch_length}")
         self.estimator, self.render_mode, self.video_path = estimator, render_mode, video_path
-        self.experiment = Paper003Experiment(scenario=scenario, fine_duration=episode_length,
-                                             filter_step=epoch_length)
+        self.experiment = experiment_for(scenario, fine_duration=episode_length,
+                                         filter_step=epoch_length)
         self.config = self.experiment.scenario_config()
-        tuning = self.experiment.tuning(self.config)
         factors = {"gyro_noise": 1.0, "accel_noise": 1.0, "measurement": 1.0,
                    **(mistuning or {})}
         unknown = set(factors) - {"gyro_noise", "accel_noise", "measurement"}
         if unknown:
             raise ConfigError(f"mistuning key {sorted(unknown)[0]!r}; valid: gyro_noise, "
                               "accel_noise, measurement")
-        self.tuning = replace(
-            tuning,
-            gyro_noise_density=tuning.gyro_noise_density * np.sqrt(factors["gyro_noise"]),
-            accel_noise_density=tuning.accel_noise_density * np.sqrt(factors["accel_noise"]),
-            measurement_sigma=tuple(s * np.sqrt(factors["measurement"])
-                                    for s in tuning.measurement_sigma))
-        self._fading = issubclass(FILTERS[estimator].adaptation, InnovationFading)
+        bad = [k for k, v in factors.items() if not (np.isfinite(v) and v > 0)]
+        if bad:
+            raise ConfigError(f"mistuning {bad[0]!r} = {factors[bad[0]]} must be > 0")
+        self._mistuning = factors
+        self._fading = filter_entry(estimator).fading
         self.action_space = spaces.Box(-1.0, 1.0, (4 if self._fading else 3,), np.float32)
         low = np.concatenate([np.full(3, -10.0), np.full(9, -20.0), np.full(3, -2.0), [0.0]])
         high = np.concatenate([np.full(3, 10.0), np.full(9, 5.0), np.full(3, 3.0), [1.0]])
@@ -97,7 +94,7 @@ class AlignmentEnv(gym.Env):
         self._render_size = render_size
         self._renderer = None
         self._world = None
-        self._run: InertialFineAlignment | None = None
+        self._run: AlignmentRun | None = None
         self._frames: list[np.ndarray] = []
 
     # --- episode ------------------------------------------------------------------------
@@ -105,7 +102,7 @@ class AlignmentEnv(gym.Env):
         if episode_seed in self._cache:
             self._cache.move_to_end(episode_seed)
             return self._cache[episode_seed]
-        episode = prepare_episode(self.experiment, episode_seed, config=self.config)
+        episode = self.experiment.prepare_episode(episode_seed, config=self.config)
         if self._cache_size > 0:
             self._cache[episode_seed] = episode
             while len(self._cache) > self._cache_size:
@@ -114,29 +111,31 @@ class AlignmentEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Options: "episode_seed" (int, else drawn from np_random), "start_error":
-        "coarse" (the episode's own coarse alignment, default), "random" (drawn from the
-        filter's initial covariance) or phi E, N, U in rad (3,)."""
+        "default" (the experiment's: the episode's own coarse alignment for 003, the
+        large azimuth error for 002; "coarse" is the same), "random" (drawn from the
+        filter's initial attitude sigma) or phi E, N, U in rad (3,)."""
         super().reset(seed=seed)
         options = options or {}
         episode_seed = int(options.get("episode_seed",
                                        self.np_random.integers(0, 2 ** 31 - 1)))
         self._episode = self._prepare(episode_seed)
-        start = options.get("start_error", "coarse")
+        start = options.get("start_error", "default")
         if isinstance(start, str):
-            if start == "coarse":
-                start = self._episode.coarse_error
+            if start in ("default", "coarse"):
+                start = self.experiment.episode_start(self._episode)
             elif start == "random":
-                start = self.np_random.standard_normal(3) * np.asarray(
-                    self.tuning.attitude_sigma)
+                start = self.np_random.standard_normal(3) * self.experiment.attitude_sigma()
             else:
-                raise ConfigError(f"start_error = {start!r}; valid: 'coarse', 'random' or "
+                raise ConfigError(f"start_error = {start!r}; valid: 'default', 'random' or "
                                   "3 angles in rad")
         self._start_error = np.asarray(start, dtype=float)
-        filt = make_filter(self.estimator, rho=self.experiment.rho)
+        if self._start_error.shape != (3,) or not np.all(np.isfinite(self._start_error)):
+            raise ConfigError("start_error must be 3 finite angles in rad (E, N, U)")
+        filt = make_filter(self.estimator, **self.experiment.filter_options())
         self._filter = filt
-        self._run = InertialFineAlignment(filt, self._episode.inputs,
-                                          start_attitude([self._episode], self._start_error),
-                                          self.tuning, self._episode.lat, self._episode.h)
+        self._run = AlignmentRun(filt, self.experiment.model([self._episode],
+                                                             self._start_error))
+        self._observed = self.experiment.observed_states(self._run.model.layout)
         self._episode_seed = episode_seed
         self._world = None
         self._frames = []
@@ -154,20 +153,24 @@ class AlignmentEnv(gym.Env):
             self._filter.adaptation.cap = max(self._filter.adaptation.cap,
                                               self._filter.adaptation.floor)
         run = self._run
-        run.step(q_scale=(10.0 ** (2 * a[0]), 10.0 ** (2 * a[1])), r_scale=10.0 ** (2 * a[2]))
+        mis = self._mistuning
+        run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * a[0]),
+                          mis["accel_noise"] * 10.0 ** (2 * a[1])),
+                 r_scale=mis["measurement"] * 10.0 ** (2 * a[2]))
         k = run.k
         error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k])
         reward = -min(float(np.linalg.norm(error / REWARD_SCALE)), REWARD_CAP)
         diverged = bool(run.filt.health.diverged[0])
         terminated = run.done or diverged
-        info = {"error_arcmin": error / arcmin, "time_s": float(run.inputs.t[k] -
-                                                                run.inputs.t[0]),
+        info = {"error_arcmin": error / arcmin, "time_s": float(run.t[k] -
+                                                                run.t[0]),
                 "diverged": diverged}
         if terminated:
             result = run.result()
-            analysed = analyse_run(self.estimator, "env", result, [self._episode],
-                                   self.experiment)
-            info["metrics"] = episode_metrics(analysed, 0, self.experiment.rms_window)
+            analysed = campaign.analyse_run(self.estimator, "env", result, [self._episode],
+                                            self.experiment)
+            info["metrics"] = campaign.episode_metrics(analysed, 0,
+                                                       self.experiment.rms_window)
         if self.render_mode == "rgb_array" and self.video_path:
             self._frames.append(self.render())
             if terminated:
@@ -178,13 +181,14 @@ class AlignmentEnv(gym.Env):
         run, filt = self._run, self._filter
         obs = np.zeros(OBS_SIZE)
         if filt.innovation is not None:
-            obs[0:3] = filt.innovation[0] / np.sqrt(np.diagonal(filt.S[0]))
+            e = filt.innovation[0] / np.sqrt(np.diagonal(filt.S[0]))
+            obs[0:min(3, e.size)] = e[:3]
         diag = np.diagonal(filt.P[0])
         diag0 = np.diagonal(run.P[0, 0])
-        sub = np.r_[PHI, EPS, NABLA]
+        sub = self._observed
         with np.errstate(divide="ignore"):
-            obs[3:12] = np.log10(np.maximum(diag[sub], 1e-300) / diag0[sub])
-        if run.k > 0 and run.factors.shape[-1]:
+            obs[3:3 + sub.size] = np.log10(np.maximum(diag[sub], 1e-300) / diag0[sub])
+        if run.k > 0 and run.factors is not None and run.factors.shape[-1]:
             f = run.factors[0, run.k - 1]
             obs[12:12 + f.size] = np.log10(np.maximum(f, 1e-3))
         obs[15] = run.k / run.epochs
@@ -207,7 +211,7 @@ class AlignmentEnv(gym.Env):
             self._camera = mujoco.MjvCamera()
             self._camera.distance, self._camera.elevation = 160.0, -25.0
             self._camera.azimuth = 120.0
-        t = 0.0 if self._run is None else float(self._run.inputs.t[self._run.k])
+        t = 0.0 if self._run is None else float(self._run.t[self._run.k])
         qpos, qvel, _ = world.joint_state(np.array([t]))
         world.data.qpos[:], world.data.qvel[:] = qpos[0], qvel[0]
         mujoco.mj_forward(world.model, world.data)
@@ -236,10 +240,10 @@ class AlignmentEnv(gym.Env):
 
 
 def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0,
-             start_error: np.ndarray | str = "coarse", **env_kwargs) -> list[dict]:
+             start_error: np.ndarray | str = "default", **env_kwargs) -> list[dict]:
     """Run the estimator passively (zero action) on the campaign's episode seeds and return
     the per-episode metrics table (the campaign's rows for the same seeds and start)."""
-    from scenarios.paper003 import episode_seeds
+    from scenarios.campaign import episode_seeds
 
     env = gym.make(env_id, estimator=estimator, **env_kwargs)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from models.units import arcmin
-from scenarios.paper003 import AXES, CampaignResult, episode_metrics
+from scenarios.campaign import AXES, CampaignResult, episode_metrics
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
@@ -17,36 +17,12 @@ TIDY_COLUMNS = (
     + [f"final_sigma_{a}_arcmin" for a in AXES]
     + ["final_pitch_arcmin", "final_roll_arcmin", "final_heading_arcmin",
        "heading_convergence_s", "nees_mean", "nees_final", "diverged", "diverged_reason",
-       "diverged_time_s", "ms_per_epoch"])
+       "diverged_time_s", "covariance_repairs", "ms_per_epoch"])
 
 
 def format_tables(result: CampaignResult) -> str:
-    """The coarse and fine tables, shaped like the paper's."""
-    lines = []
-    n = len(result.seeds)
-    coarse = result.coarse_summary()
-    lines.append(f"Coarse alignment (inertial frame, {result.experiment.coarse_duration:g} s), "
-                 f"{n} runs: error (deg)")
-    lines.append(f"{'':8s}" + "".join(f"{a:>14s}" for a in AXES))
-    for key, label in (("mean_deg", "mean"), ("max_deg", "max"), ("min_deg", "min")):
-        lines.append(f"{label:8s}" + "".join(f"{v:14.5f}" for v in coarse[key]))
-    fine = result.fine_summary()
-    for start in ("mean", "max"):
-        err = result.start_errors[start] / arcmin
-        lines.append("")
-        lines.append(f"Fine alignment ({result.experiment.fine_duration:g} s) from the {start} "
-                     f"coarse error [{', '.join(f'{e:.2f}' for e in err)}] arcmin: "
-                     "final error (arcmin)")
-        lines.append(f"{'filter':8s}{'stat':6s}" + "".join(f"{a:>12s}" for a in AXES)
-                     + f"{'diverged':>10s}")
-        for name, per_start in fine.items():
-            s = per_start[start]
-            for stat in ("mean", "std", "rms"):
-                row = s[f"{stat}_arcmin"]
-                tail = f"{s['diverged_fraction']:10.0%}" if stat == "mean" else ""
-                lines.append(f"{name if stat == 'mean' else '':8s}{stat:6s}"
-                             + "".join(f"{v:12.4f}" for v in row) + tail)
-    return "\n".join(lines)
+    """The experiment's paper-shaped tables."""
+    return result.experiment.format_tables(result)
 
 
 def tidy_rows(result: CampaignResult) -> list[dict]:
@@ -58,8 +34,9 @@ def tidy_rows(result: CampaignResult) -> list[dict]:
 
 def write_outputs(result: CampaignResult, out_dir: str | Path | None,
                   json_path: str | Path | None) -> list[Path]:
-    """Write results.csv, coarse.csv, timeseries.npz, error plots (PNG) to out_dir, and the
-    JSON summary to json_path. Returns the paths written."""
+    """Write results.csv, coarse.csv (experiments with a coarse stage), timeseries.npz,
+    error plots (PNG) to out_dir, and the JSON summary to json_path. Returns the paths
+    written."""
     written = []
     if json_path is not None:
         path = Path(json_path)
@@ -74,11 +51,14 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
         writer = csv.DictWriter(f, fieldnames=TIDY_COLUMNS)
         writer.writeheader()
         writer.writerows(tidy_rows(result))
-    with open(out / "coarse.csv", "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(["seed"] + [f"{a}_deg" for a in AXES])
-        for seed, e in zip(result.seeds, np.rad2deg(result.coarse_errors)):
-            writer.writerow([seed, *e])
+    written += [out / "results.csv"]
+    if all(hasattr(e, "coarse_error") for e in result.episodes):
+        with open(out / "coarse.csv", "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(["seed"] + [f"{a}_deg" for a in AXES])
+            for seed, e in zip(result.seeds, result.episodes):
+                writer.writerow([seed, *np.rad2deg(e.coarse_error)])
+        written.append(out / "coarse.csv")
     series = {"t": result.runs[0].result.t - result.runs[0].result.t[0],
               "seed": np.asarray(result.seeds)}
     for run in result.runs:
@@ -88,7 +68,7 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
         series[f"{key}__factors"] = run.result.factors.astype(np.float32)
         series[f"{key}__nees"] = run.nees.astype(np.float32)
     np.savez_compressed(out / "timeseries.npz", **series)
-    written += [out / "results.csv", out / "coarse.csv", out / "timeseries.npz"]
+    written.append(out / "timeseries.npz")
     written += plot_errors(result, out)
     return written
 
@@ -101,7 +81,7 @@ def plot_errors(result: CampaignResult, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     paths = []
-    for start in ("mean", "max"):
+    for start in result.experiment.starts:
         fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
         for i, run in enumerate(r for r in result.runs if r.start == start):
             color = f"C{i}"
@@ -116,7 +96,7 @@ def plot_errors(result: CampaignResult, out: Path) -> list[Path]:
             ax.set_ylabel(f"{AXES[axis]} (arcmin)")
             ax.grid(True, alpha=0.3)
         axes[0].legend(ncol=4, fontsize=8)
-        axes[0].set_title(f"Fine alignment from the {start} coarse error, seed "
+        axes[0].set_title(f"Fine alignment from the {start} start, seed "
                           f"{result.seeds[0]} (dashed: +-3 sigma)")
         axes[-1].set_xlabel("time since the start of fine alignment (s)")
         fig.tight_layout()

@@ -7,8 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from models.earth import TangentPlane
+from models.platform import StaticPlatformWorld
 from models.ship import ShipWorld
 from models.truth import NavigationTruth, navigation_truth
+from models.world import PrescribedWorld
 from scenarios.config import ConfigError, ScenarioConfig
 from sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
 
@@ -68,10 +70,14 @@ def episode_rngs(seed: int) -> dict[str, np.random.Generator]:
                 children)}
 
 
-def make_world(config: ScenarioConfig, rng: np.random.Generator) -> ShipWorld:
-    """The scenario's MuJoCo world with this episode's random motion phases."""
+def make_world(config: ScenarioConfig, rng: np.random.Generator) -> PrescribedWorld:
+    """The scenario's prescribed MuJoCo world (the ship with this episode's random motion
+    phases, or the static platform)."""
+    if config.world == "static-platform":
+        return StaticPlatformWorld(config.motion)
     if config.world != "ship-prescribed":
-        raise ConfigError(f"world = {config.world!r} is unknown; valid choices: ship-prescribed")
+        raise ConfigError(f"world = {config.world!r} is unknown; valid choices: "
+                          "ship-prescribed, static-platform")
     motion = config.motion
     if config.random_linear_phase:
         motion = replace(motion, linear_phase=tuple(rng.uniform(0.0, 2 * np.pi, 3)))
@@ -95,7 +101,7 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
     encoder = config.encoder
     offsets = np.zeros(2) if ideal else encoder.draw_offsets(rngs["encoder"])
-    reading = (truth.gimbal_angles.copy() if ideal
+    reading = (truth.gimbal_angles.copy() if ideal or not config.motion.has_gimbal
                else encoder.measure(truth.gimbal_angles, offsets))
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization)

@@ -2,9 +2,20 @@
 import numpy as np
 import pytest
 
-from estimators.adaptation import (ImprovedMultipleFadingFactors, MultipleFadingFactors,
-                                   NoAdaptation, SingleFadingFactor)
+from estimators.adaptation import (AdaptationContext, ImprovedMultipleFadingFactors,
+                                   MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
 from models.attitude import rot_z
+
+
+def adapt(policy, PhiPPhi, Q, H, R, e, axes=None):
+    """P_pred and factors of a policy for one update's context."""
+    S = H @ (PhiPPhi + Q) @ np.swapaxes(H, -1, -2) + R
+    ctx = AdaptationContext(innovation=e, valid=np.isfinite(e), S=S,
+                            P_xz=(PhiPPhi + Q) @ np.swapaxes(H, -1, -2), PhiPPhi=PhiPPhi,
+                            Q=Q, R=R, H=H, axes=axes)
+    adjustment = policy.adapt(ctx)
+    P = PhiPPhi + Q if adjustment.P_pred is None else adjustment.P_pred
+    return P, adjustment.factors
 
 # n = 2 states, m = 1 measurement, H = [1 0].
 PhiPPhi = np.array([[[2.0, 0.5], [0.5, 1.0]]])
@@ -16,14 +27,14 @@ e = np.array([[3.0]])  # first innovation: C_1 = e e^T = 9
 
 def test_single_fading_factor_by_hand():
     # N = 9 - 0.1 - 0.5 = 8.4, M = 2, lambda = 4.2
-    P, lam = SingleFadingFactor().predicted_covariance(PhiPPhi, Q, H, R, e)
+    P, lam = adapt(SingleFadingFactor(), PhiPPhi, Q, H, R, e)
     assert lam[0, 0] == pytest.approx(4.2)
     np.testing.assert_allclose(P[0], [[8.5, 2.1], [2.1, 4.4]])
 
 
 def test_multiple_fading_factors_by_hand():
     # N' = 8.4, lambda_1 = sqrt(8.4 / 2) = sqrt(4.2); second state unfaded.
-    P, lam = MultipleFadingFactors().predicted_covariance(PhiPPhi, Q, H, R, e)
+    P, lam = adapt(MultipleFadingFactors(), PhiPPhi, Q, H, R, e)
     assert lam[0, 0] == pytest.approx(np.sqrt(4.2))
     np.testing.assert_allclose(P[0], [[8.5, 0.5 * np.sqrt(4.2)], [0.5 * np.sqrt(4.2), 1.2]])
 
@@ -31,12 +42,12 @@ def test_multiple_fading_factors_by_hand():
 def test_improved_multiple_fading_factors_by_hand():
     # N = 9 - 0.5 = 8.5, J = PhiPPhi + Q = [[2.1, 0.5], [0.5, 1.2]], lambda = sqrt(8.5/2.1)
     policy = ImprovedMultipleFadingFactors()
-    P, lam = policy.predicted_covariance(PhiPPhi, Q, H, R, e)
+    P, lam = adapt(policy, PhiPPhi, Q, H, R, e)
     lam1 = np.sqrt(8.5 / 2.1)
     assert lam[0, 0] == pytest.approx(lam1)
     np.testing.assert_allclose(P[0], [[8.5, 0.5 * lam1], [0.5 * lam1, 1.2]])
     # Second epoch: C_2 = (rho C_1 + e_2^2) / (1 + rho) = (0.95 * 9 + 1) / 1.95 (003 eq. 50).
-    _, lam = policy.predicted_covariance(PhiPPhi, Q, H, R, np.array([[1.0]]))
+    _, lam = adapt(policy, PhiPPhi, Q, H, R, np.array([[1.0]]))
     C2 = (0.95 * 9.0 + 1.0) / 1.95
     assert lam[0, 0] == pytest.approx(max(1.0, np.sqrt((C2 - 0.5) / 2.1)))
 
@@ -53,13 +64,13 @@ def test_consistent_innovations_reproduce_the_kf():
     PP, Qm = random_spd(rng, 4, n), 0.1 * random_spd(rng, 4, n)
     Hm = np.broadcast_to(np.hstack([np.eye(m), np.zeros((m, n - m))]), (4, m, n))
     Rm = 0.5 * np.broadcast_to(np.eye(m), (4, m, m))
-    kf, _ = NoAdaptation().predicted_covariance(PP, Qm, Hm, Rm, None)
+    kf, _ = adapt(NoAdaptation(), PP, Qm, Hm, Rm, np.zeros((4, m)))
     for policy, J in ((SingleFadingFactor(), None), (MultipleFadingFactors(), PP),
                       (ImprovedMultipleFadingFactors(), PP + Qm)):
         J = PP + Qm if J is None else J
         C = Hm @ J @ np.swapaxes(Hm, -1, -2) + Rm
-        policy.innovation_covariance = lambda e, C=C: C  # exact innovation statistics
-        P, lam = policy.predicted_covariance(PP, Qm, Hm, Rm, np.zeros((4, m)))
+        policy.innovation_covariance = lambda e, valid, C=C: C  # exact statistics
+        P, lam = adapt(policy, PP, Qm, Hm, Rm, np.zeros((4, m)))
         np.testing.assert_allclose(lam, 1.0, atol=1e-12)
         np.testing.assert_allclose(P, kf, atol=1e-12)
 
@@ -75,15 +86,16 @@ def test_inflated_channel_gives_its_factor_and_leaves_the_rest():
     J = PP + Qm
     C = Hm @ J @ np.swapaxes(Hm, -1, -2) + Rm
     C[0, 0, 0] = Rm[0, 0, 0] + kappa ** 2 * J[0, 0, 0]
-    policy.innovation_covariance = lambda e: C
-    P, lam = policy.predicted_covariance(PP, Qm, Hm, Rm, np.zeros((1, m)))
+    policy.innovation_covariance = lambda e, valid: C
+    P, lam = adapt(policy, PP, Qm, Hm, Rm, np.zeros((1, m)))
     np.testing.assert_allclose(lam[0], [kappa, 1.0])
     np.testing.assert_allclose(P[0, m:, m:], J[0, m:, m:])
     assert np.all(np.linalg.eigvalsh(P[0]) > 0)
 
 
-def test_factor_basis_rotates_with_the_measurement_axes():
-    """With a basis U, the factors equal those of the problem expressed in U's axes."""
+def test_local_level_factors_rotate_with_the_measurement_axes():
+    """Along the observation's axes U, the factors equal those of the problem expressed
+    in U's axes."""
     rng = np.random.default_rng(2)
     n, m = 6, 3
     PP, Qm = random_spd(rng, 1, n), 0.1 * random_spd(rng, 1, n)
@@ -93,20 +105,32 @@ def test_factor_basis_rotates_with_the_measurement_axes():
     U = rot_z(0.7)[None]
     T = np.eye(n)[None].copy()
     T[0, :m, :m] = U[0]
-    policy = MultipleFadingFactors()
-    policy.basis = U
-    P, lam = policy.predicted_covariance(PP, Qm, Hm, Rm, e)
+    P, lam = adapt(MultipleFadingFactors(axes="local-level"), PP, Qm, Hm, Rm, e, axes=U)
     # Same problem with the measured states rotated into U's axes, paper's formula.
     rotated = MultipleFadingFactors()
     Tt = np.swapaxes(T, -1, -2)
-    P_rot, lam_rot = rotated.predicted_covariance(T @ PP @ Tt, T @ Qm @ Tt, Hm,
-                                                  U @ Rm @ np.swapaxes(U, -1, -2),
-                                                  np.einsum("bij,bj->bi", U, e))
+    P_rot, lam_rot = adapt(rotated, T @ PP @ Tt, T @ Qm @ Tt, Hm,
+                           U @ Rm @ np.swapaxes(U, -1, -2), np.einsum("bij,bj->bi", U, e))
     np.testing.assert_allclose(lam, lam_rot)
     np.testing.assert_allclose(T @ P @ Tt, P_rot, atol=1e-12)
 
 
 def test_multiple_factors_reject_a_general_H():
     with pytest.raises(ValueError, match="H = \\[diag"):
-        MultipleFadingFactors().predicted_covariance(
-            PhiPPhi, Q, np.array([[[1.0, 1.0]]]), R, e)
+        adapt(MultipleFadingFactors(), PhiPPhi, Q, np.array([[[1.0, 1.0]]]), R, e)
+
+
+def test_missing_measurement_keeps_the_innovation_statistics():
+    """An episode whose measurement is missing keeps C_{k-1}; the others update it."""
+    policy = SingleFadingFactor()
+    e1 = np.array([[3.0], [3.0]])
+    two = (np.repeat(a, 2, axis=0) for a in (PhiPPhi, Q, H, R))
+    PP2, Q2, H2, R2 = two
+    adapt(policy, PP2, Q2, H2, R2, e1)
+    C1 = policy._C.copy()
+    valid = np.array([[True], [False]])
+    ctx = AdaptationContext(innovation=np.array([[1.0], [0.0]]), valid=valid, S=R2,
+                            P_xz=np.zeros((2, 2, 1)), PhiPPhi=PP2, Q=Q2, R=R2, H=H2)
+    policy.adapt(ctx)
+    assert policy._C[1, 0, 0] == C1[1, 0, 0]
+    assert policy._C[0, 0, 0] == pytest.approx((0.95 * 9.0 + 1.0) / 1.95)

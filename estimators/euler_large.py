@@ -1,0 +1,457 @@
+"""Seed 002's large-misalignment model with Euler error angles on a static base
+(ALGORITHMS 3.1, ENU/RFU restatement; SPEC 4.4), and the open-loop static-base INS it
+runs on.
+
+The computed navigation frame p is the INS's ENU estimate. The Euler error angles
+alpha = [alpha_E, alpha_N, alpha_U] define C_p^n(alpha) = Rz(alpha_U) Rx(alpha_E) Ry(alpha_N)
+(ALGORITHMS (3.1); PSINS ``a2mat``), so that C_b^n = C_p^n(alpha) C_b^p. The IMU is fixed
+to the platform (s = b).
+
+State (10): x = [alpha_E, alpha_N, alpha_U, dv_E, dv_N, nabla_x, nabla_y, eps_x, eps_y,
+eps_z] (rad, m/s, m/s^2 in b, rad/s in b). Seed 002 orders its NED/FRD state as
+[dv_N, dv_E, phi_x(N), phi_y(E), phi_z(D), nabla_x(F), nabla_y(R), eps_x, eps_y, eps_z];
+the map (ALGORITHMS 0) is alpha_E = phi_E, alpha_N = phi_N, alpha_U = -phi_D,
+nabla_x^RFU = nabla_y^FRD, nabla_y^RFU = nabla_x^FRD, eps^RFU = T eps^FRD. Hence the
+seed's P0 sigmas (45, 45, 60 deg on phi_x, phi_y, phi_z) become 45, 45, 60 deg on
+alpha_E, alpha_N, alpha_U, and the symmetric velocity / bias sigmas are unchanged.
+
+Dynamics, static base, ALGORITHMS (3.5):
+  alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie^n - C_b^p (eps + w_g)]
+  dv_dot_EN = [(I - C_p^n) f^p + C_p^n C_b^p ([nabla_x, nabla_y, 0] + w_a)]_EN
+with C_omega of ALGORITHMS (3.2) and f^p = C_b^p f~^b the computed specific force.
+Measurement: z = v_EN of the open-loop INS = [0_2x3, I_2, 0_2x5] x + v.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.model import FilterModel, Observation, StateLayout, Transition
+from estimators.strapdown import compensate
+from models.attitude import (dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
+                             quat_rotate, quat_to_dcm, rotvec_to_quat)
+from models.earth import OMEGA_IE
+from models.units import deg, deg_per_h, mg
+
+ALPHA, DV, NABLA, EPS = slice(0, 3), slice(3, 5), slice(5, 7), slice(7, 10)
+N_STATES = 10
+LAYOUT = StateLayout({"euler_error": ALPHA, "velocity_error": DV, "accel_bias": NABLA,
+                      "gyro_bias": EPS}, angles=(0, 1, 2))
+_H = np.hstack([np.zeros((2, 3)), np.eye(2), np.zeros((2, 5))])
+
+
+# --------------------------------------------------------------------------------------
+# The open-loop static-base INS
+# --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class StaticInsInputs:
+    """A batch of static-base INS runs sampled at the filter epochs (leading axis B).
+
+    t: (K+1,) s at the epoch boundaries from 0. C_b_p: (B, K+1, 3, 3) computed attitude
+    (b = RFU to p = computed ENU) at the boundaries; C_b_p_mid: (B, K, 3, 3) at
+    mid-epoch. f_p: (B, K, 3) m/s^2, computed specific force C_b^p f~^b averaged over
+    each epoch (ENU). v_EN: (B, K+1, 2) m/s, INS horizontal velocity at the boundaries
+    (= the velocity error, the true IMU being at rest). lat: (B,) rad; h: (B,) m.
+    """
+
+    t: np.ndarray
+    C_b_p: np.ndarray
+    C_b_p_mid: np.ndarray
+    f_p: np.ndarray
+    v_EN: np.ndarray
+    lat: np.ndarray
+    h: np.ndarray
+
+    @property
+    def step(self) -> float:
+        """Filter epoch, s."""
+        return float(self.t[1] - self.t[0])
+
+
+def _earth_rotation_quat(omega: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """q of exp(-[omega x] t): the n frame's rotation over t (s), (len(t), 4)."""
+    return rotvec_to_quat(-np.asarray(t, dtype=float)[:, None] * omega[None, :])
+
+
+def static_base_ins(dtheta: np.ndarray, dv: np.ndarray, dt: float, C_b_p0: np.ndarray,
+                    lat: float, h: float, epoch: float) -> StaticInsInputs:
+    """Open-loop strapdown of a static-base alignment (002's marble platform: the
+    position is known and not navigated) from IMU increments, sampled per epoch.
+
+    dtheta (M, 3) rad, dv (M, 3) m/s: increments in b (RFU); dt: IMU interval, s;
+    C_b_p0 (3, 3): initial computed attitude; lat rad, h m: the known position; epoch:
+    filter step, s (a whole number of IMU intervals; a tail shorter than an epoch is
+    dropped).
+
+    Attitude: C_b^p(t+dt) = exp(-[omega_ie^n x] dt) C_b^p(t) exp([phi x]), phi = dtheta
+    with the two-sample coning term (zero on a static base); omega_ie^n = [0, Omega cos L,
+    Omega sin L], no transport rate. Because the n-frame and body rotations multiply on
+    opposite sides they commute, and C_b^p(t_m) = exp(-[omega_ie x] t_m) C_b^p0
+    prod_{i<=m} exp([phi_i x]), accumulated as a vectorised quaternion scan.
+
+    Velocity: v_dot = C_b^p f~ + g^n, g^n = [0, 0, -g(L, h)], with NO Coriolis (nor
+    transport) term. The true IMU is at rest (v^n = 0), so the Coriolis acceleration of
+    the true motion is zero, and 002's static model (ALGORITHMS (3.5)) has no Coriolis
+    term: without it the INS velocity is exactly the velocity error dv of (3.5). (With
+    it, the open-loop velocity of tens of m/s from a large level error would couple
+    through 2 omega_ie x v into the measurement, which the model does not describe.)
+    The increment over one sample in p is C_b^p(t_{i-1}) dv_b - 1/2 [omega_ie dt x]
+    C_b^p(t_{i-1}) dv, dv_b with the rotation/sculling compensation.
+    """
+    dtheta = np.asarray(dtheta, dtype=float)
+    dv = np.asarray(dv, dtype=float)
+    per_epoch = int(round(epoch / dt))
+    if per_epoch < 1 or abs(per_epoch * dt - epoch) > 1e-9 * max(epoch, 1.0):
+        raise ValueError(f"epoch {epoch} s must be a whole number of IMU intervals {dt} s")
+    M = dtheta.shape[0]
+    K = M // per_epoch
+    if K < 1:
+        raise ValueError(f"{M} IMU samples are shorter than one epoch of {epoch} s")
+    M = K * per_epoch
+    dtheta, dv = dtheta[:M], dv[:M]
+    omega = np.array([0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)])
+    # g^n = [0, 0, -g(L, h)] (models.earth.normal_gravity) has no E, N components: the
+    # horizontal velocity returned here does not depend on it.
+
+    phi, dv_b = compensate(dtheta[None], dv[None])
+    phi, dv_b = phi[0], dv_b[0]
+    # Body part: Q_m = prod_{i<=m} exp([phi_i x]), Q_0 = I.
+    q_body = np.concatenate([[[1.0, 0.0, 0.0, 0.0]], quat_cumprod(rotvec_to_quat(phi))])
+    q0 = dcm_to_quat(np.asarray(C_b_p0, dtype=float))
+    t_s = dt * np.arange(M + 1)
+    # q_b^p(t_m) = q_E(t_m) q0 Q_m (M+1, 4).
+    q_bp = quat_mul(_earth_rotation_quat(omega, t_s), quat_mul(q0[None], q_body))
+
+    # Velocity increments in p per sample (M, 3); the n-frame rotation over the sample.
+    dv_p = quat_rotate(q_bp[:-1], dv_b)
+    dv_p -= 0.5 * dt * np.cross(omega, quat_rotate(q_bp[:-1], dv))
+    V_f = np.concatenate([np.zeros((1, 3)), np.cumsum(dv_p, axis=0)])
+
+    idx = per_epoch * np.arange(K + 1)
+    t = dt * idx
+    # Mid-epoch attitude: the sample at the midpoint, or half of the next sample's
+    # rotation when an epoch has an odd number of samples.
+    j = idx[:-1] + per_epoch // 2
+    if per_epoch % 2 == 0:
+        q_mid = q_bp[j]
+    else:
+        t_mid = t[:-1] + 0.5 * epoch
+        q_mid = quat_mul(_earth_rotation_quat(omega, t_mid), quat_mul(
+            q0[None], quat_mul(q_body[j], rotvec_to_quat(0.5 * phi[j]))))
+    f_p = np.diff(V_f[idx], axis=0) / epoch
+    return StaticInsInputs(t=t, C_b_p=quat_to_dcm(q_bp[idx])[None],
+                           C_b_p_mid=quat_to_dcm(q_mid)[None], f_p=f_p[None],
+                           v_EN=V_f[idx, :2][None], lat=np.array([float(lat)]),
+                           h=np.array([float(h)]))
+
+
+def stack_ins_inputs(inputs: list[StaticInsInputs]) -> StaticInsInputs:
+    """One batch from several episodes' INS inputs (same time grid, else ValueError)."""
+    if not inputs:
+        raise ValueError("no inputs to stack")
+    for other in inputs[1:]:
+        if not np.array_equal(other.t, inputs[0].t):
+            raise ValueError("episodes must share the filter time grid")
+    return StaticInsInputs(t=inputs[0].t, **{
+        name: np.concatenate([getattr(i, name) for i in inputs])
+        for name in ("C_b_p", "C_b_p_mid", "f_p", "v_EN", "lat", "h")})
+
+
+# --------------------------------------------------------------------------------------
+# Euler-angle kinematics
+# --------------------------------------------------------------------------------------
+
+def C_p_n(alpha: np.ndarray) -> np.ndarray:
+    """C_p^n(alpha) = Rz(alpha_U) Rx(alpha_E) Ry(alpha_N), ALGORITHMS (3.1); alpha (..., 3)
+    = [alpha_E, alpha_N, alpha_U] rad -> (..., 3, 3). Equals
+    models.attitude.euler_to_dcm(alpha) (the PSINS sequence)."""
+    sx, cx = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
+    sy, cy = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
+    sz, cz = np.sin(alpha[..., 2]), np.cos(alpha[..., 2])
+    C = np.empty(alpha.shape[:-1] + (3, 3))
+    C[..., 0, 0] = cz * cy - sz * sx * sy
+    C[..., 0, 1] = -sz * cx
+    C[..., 0, 2] = cz * sy + sz * sx * cy
+    C[..., 1, 0] = sz * cy + cz * sx * sy
+    C[..., 1, 1] = cz * cx
+    C[..., 1, 2] = sz * sy - cz * sx * cy
+    C[..., 2, 0] = -cx * sy
+    C[..., 2, 1] = sx
+    C[..., 2, 2] = cx * cy
+    return C
+
+
+def C_omega(alpha: np.ndarray) -> np.ndarray:
+    """C_omega (..., 3, 3) of ALGORITHMS (3.2): omega_np^p = C_omega alpha_dot, where
+    C_p^n_dot = C_p^n [omega_np^p x]. Singular at alpha_E = +-90 deg."""
+    sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
+    sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
+    z, o = np.zeros_like(sE), np.ones_like(sE)
+    return np.stack([np.stack([cN, z, -sN * cE], -1),
+                     np.stack([z, o, sE], -1),
+                     np.stack([sN, z, cN * cE], -1)], -2)
+
+
+def C_omega_inv(alpha: np.ndarray) -> np.ndarray:
+    """C_omega^-1 (..., 3, 3) in closed form (det C_omega = cos alpha_E)."""
+    sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
+    sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
+    tE, z, o = sE / cE, np.zeros_like(sE), np.ones_like(sE)
+    return np.stack([np.stack([cN, z, sN], -1),
+                     np.stack([sN * tE, o, -cN * tE], -1),
+                     np.stack([-sN / cE, z, cN / cE], -1)], -2)
+
+
+def _C_omega_inv_partials(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """d(C_omega^-1)/d alpha_E and d/d alpha_N, each (..., 3, 3) (no alpha_U dependence)."""
+    sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
+    sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
+    tE, secE, z = sE / cE, 1.0 / cE, np.zeros_like(sE)
+    dE = np.stack([np.stack([z, z, z], -1),
+                   np.stack([sN * secE ** 2, z, -cN * secE ** 2], -1),
+                   np.stack([-sN * tE * secE, z, cN * tE * secE], -1)], -2)
+    dN = np.stack([np.stack([-sN, z, cN], -1),
+                   np.stack([cN * tE, z, sN * tE], -1),
+                   np.stack([-cN * secE, z, -sN * secE], -1)], -2)
+    return dE, dN
+
+
+def _C_p_n_partials(alpha: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, ...]:
+    """dC_p^n/d alpha_E, d alpha_N, d alpha_U (each (..., 3, 3)) given C = C_p^n(alpha):
+    Rz [e1 x] Rx Ry, C [e2 x], [e3 x] C."""
+    e1 = np.array([[0.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+    e2 = np.array([[0.0, 0, 1], [0, 0, 0], [-1, 0, 0]])
+    e3 = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 0]])
+    sz, cz = np.sin(alpha[..., 2]), np.cos(alpha[..., 2])
+    z, o = np.zeros_like(sz), np.ones_like(sz)
+    Rz = np.stack([np.stack([cz, -sz, z], -1), np.stack([sz, cz, z], -1),
+                   np.stack([z, z, o], -1)], -2)
+    # Rx Ry = Rz^T C, so Rz [e1 x] Rx Ry = Rz [e1 x] Rz^T C = [(Rz e1) x] C.
+    dE = Rz @ e1 @ np.swapaxes(Rz, -1, -2) @ C
+    return dE, C @ e2, e3 @ C
+
+
+def true_state(C_b_n_true: np.ndarray, C_b_p: np.ndarray) -> np.ndarray:
+    """The Euler error alpha (..., 3) rad, [alpha_E, alpha_N, alpha_U], such that
+    C_b^n = C_p^n(alpha) C_b^p: C_p^n = C_b^n C_p^b, inverted as the ZXY sequence
+    (alpha_E in [-90, 90] deg)."""
+    return dcm_to_euler(C_b_n_true @ np.swapaxes(C_b_p, -1, -2))
+
+
+def state_vector(alpha: np.ndarray, v_EN: np.ndarray, accel_bias_xy: np.ndarray,
+                 gyro_bias: np.ndarray) -> np.ndarray:
+    """The 10-state vector (..., 10) from its blocks (rad, m/s, m/s^2, rad/s)."""
+    return np.concatenate([np.asarray(a, dtype=float) for a in
+                           (alpha, v_EN, accel_bias_xy, gyro_bias)], axis=-1)
+
+
+def continuous_dynamics(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
+                        omega_ie: np.ndarray) -> np.ndarray:
+    """x_dot (..., 10) of ALGORITHMS (3.5) without noise, batched by broadcasting.
+
+    x (..., 10); C_b_p (..., 3, 3); f_p (..., 3) m/s^2 in p; omega_ie (..., 3) rad/s in n.
+    """
+    alpha = x[..., ALPHA]
+    C = C_p_n(alpha)
+    Ct = np.swapaxes(C, -1, -2)
+    # ALGORITHMS (3.5): alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie - C_b^p eps].
+    w = omega_ie - _mv(Ct, omega_ie) - _mv(C_b_p, x[..., EPS])
+    out = np.zeros(np.broadcast_shapes(x.shape, f_p.shape[:-1] + (N_STATES,)))
+    out[..., ALPHA] = _mv(C_omega_inv(alpha), w)
+    # dv_dot = [(I - C_p^n) f^p + C_p^n C_b^p [nabla_x, nabla_y, 0]]_EN.
+    b = C_b_p[..., :, 0] * x[..., 5:6] + C_b_p[..., :, 1] * x[..., 6:7]
+    out[..., DV] = (f_p - _mv(C, f_p - b))[..., :2]
+    return out
+
+
+def continuous_jacobian(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
+                        omega_ie: np.ndarray) -> np.ndarray:
+    """d(x_dot)/dx (..., 10, 10) of ``continuous_dynamics`` (analytic)."""
+    alpha = x[..., ALPHA]
+    C = C_p_n(alpha)
+    Ct = np.swapaxes(C, -1, -2)
+    Mi = C_omega_inv(alpha)
+    dMi = _C_omega_inv_partials(alpha)
+    dC = _C_p_n_partials(alpha, C)
+    w = omega_ie - _mv(Ct, omega_ie) - _mv(C_b_p, x[..., EPS])
+    b = C_b_p[..., :, 0] * x[..., 5:6] + C_b_p[..., :, 1] * x[..., 6:7]
+    r = b - f_p
+    shape = np.broadcast_shapes(x.shape[:-1], C_b_p.shape[:-2], f_p.shape[:-1])
+    A = np.zeros(shape + (N_STATES, N_STATES))
+    for j in range(3):
+        d_alpha = -_mv(Mi, _mv(np.swapaxes(dC[j], -1, -2), omega_ie))
+        if j < 2:
+            d_alpha = d_alpha + _mv(dMi[j], w)
+        A[..., ALPHA, j] = d_alpha
+        A[..., DV, j] = _mv(dC[j], r)[..., :2]
+    A[..., ALPHA, EPS] = -Mi @ C_b_p
+    A[..., DV, NABLA] = (C @ C_b_p)[..., :2, :2]
+    return A
+
+
+def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Batched matrix-vector product A (..., m, n) v (..., n) -> (..., m)."""
+    return np.einsum("...ij,...j->...i", A, v)
+
+
+def rk4_step(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
+             omega_ie: np.ndarray) -> np.ndarray:
+    """One RK4 step of length T (s) of ``continuous_dynamics`` with the inputs held."""
+    k1 = continuous_dynamics(x, C_b_p, f_p, omega_ie)
+    k2 = continuous_dynamics(x + 0.5 * T * k1, C_b_p, f_p, omega_ie)
+    k3 = continuous_dynamics(x + 0.5 * T * k2, C_b_p, f_p, omega_ie)
+    k4 = continuous_dynamics(x + T * k3, C_b_p, f_p, omega_ie)
+    return x + T / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def rk4_jacobian(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
+                 omega_ie: np.ndarray) -> np.ndarray:
+    """d(rk4_step)/dx (..., 10, 10), by the chain rule through the four stages."""
+    I = np.eye(N_STATES)
+    args = (C_b_p, f_p, omega_ie)
+    k1 = continuous_dynamics(x, *args)
+    D1 = continuous_jacobian(x, *args)
+    x2 = x + 0.5 * T * k1
+    k2 = continuous_dynamics(x2, *args)
+    D2 = continuous_jacobian(x2, *args) @ (I + 0.5 * T * D1)
+    x3 = x + 0.5 * T * k2
+    k3 = continuous_dynamics(x3, *args)
+    D3 = continuous_jacobian(x3, *args) @ (I + 0.5 * T * D2)
+    D4 = continuous_jacobian(x + T * k3, *args) @ (I + T * D3)
+    return I + T / 6.0 * (D1 + 2.0 * D2 + 2.0 * D3 + D4)
+
+
+def small_angle_dynamics(x: np.ndarray, C_b_n: np.ndarray, f_n: np.ndarray,
+                         omega_ie: np.ndarray) -> np.ndarray:
+    """The classic small-angle static model (ALGORITHMS (0.1)-(0.2), v = 0, no position
+    error, horizontal velocity only) in this state order, for comparison:
+    phi_dot = -[omega_ie x] phi - C_b^n eps, dv_dot = ([f^n x] phi + C_b^n nabla)_EN."""
+    phi = x[..., ALPHA]
+    out = np.zeros(x.shape)
+    out[..., ALPHA] = -np.cross(omega_ie, phi) - _mv(C_b_n, x[..., EPS])
+    b = C_b_n[..., :, 0] * x[..., 5:6] + C_b_n[..., :, 1] * x[..., 6:7]
+    out[..., DV] = (np.cross(f_n, phi) + b)[..., :2]
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# The filter model
+# --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Paper002Tuning:
+    """Seed 002's tuning (SPEC 4.4, ALGORITHMS 3.1 "002 parameters"), SI, ENU order.
+
+    P0 sigmas: velocity_sigma (m/s, E and N); euler_sigma (rad, alpha_E, alpha_N,
+    alpha_U; the seed's 45, 45, 60 deg on phi_N, phi_E, phi_D map to these, see the
+    module docstring); accel_bias_sigma (m/s^2, x and y); gyro_bias_sigma (rad/s, x, y, z).
+    Process noise: accel_psd ((m/s^2)^2/Hz) and gyro_psd ((rad/s)^2/Hz). The seed's
+    Q = diag[(0.05 mg)^2 x2, (0.01 deg/h)^2 x3] gives no units of time; it is taken here
+    as the power spectral densities of white noise (an assumption, ALGORITHMS 3.1), i.e.
+    densities 0.05 mg/sqrt(Hz) and 0.01 deg/h/sqrt(Hz). measurement_sigma: m/s.
+    """
+
+    velocity_sigma: float = 0.1
+    euler_sigma: tuple[float, float, float] = (45 * deg, 45 * deg, 60 * deg)
+    accel_bias_sigma: float = 0.02 * mg
+    gyro_bias_sigma: float = 0.1 * deg_per_h
+    accel_psd: float = (0.05 * mg) ** 2
+    gyro_psd: float = (0.01 * deg_per_h) ** 2
+    measurement_sigma: float = 0.1
+
+    def initial_covariance(self, batch: int) -> np.ndarray:
+        """P0 (batch, 10, 10), diagonal."""
+        sig = np.concatenate([self.euler_sigma, [self.velocity_sigma] * 2,
+                              [self.accel_bias_sigma] * 2, [self.gyro_bias_sigma] * 3])
+        return np.broadcast_to(np.diag(sig ** 2), (batch, N_STATES, N_STATES)).copy()
+
+
+PAPER002 = Paper002Tuning()
+
+
+class EulerLargeMisalignmentModel(FilterModel):
+    """The 10-state Euler-error model of seed 002 on a static base for a batch of
+    episodes (module docstring; ALGORITHMS (3.1)-(3.5)). Open loop: the INS runs
+    unaided and the filter estimates its Euler error.
+
+    inputs: the INS runs (``static_base_ins`` / ``stack_ins_inputs``). tuning: P0 sigmas,
+    PSDs and measurement sigma (``Paper002Tuning``); P0: optional (B, 10, 10) initial
+    covariance overriding the tuning's; measurement_sigma: optional override, m/s.
+
+    Transition: one RK4 step over the epoch with the epoch's C_b^p (mid-epoch) and mean
+    f^p held; analytic Jacobian (chain rule through the RK4 stages). Process noise
+    Q_k = G q G^T T with q = diag(q_a, q_a, q_g, q_g, q_g) (PSDs), G = d(x_dot)/d(w_a,
+    w_g) at the latest estimate passed to ``feedback`` (x0 at the start): gyro noise
+    enters alpha_dot as -C_omega^-1 C_b^p w_g, horizontal accelerometer noise enters
+    dv_dot as [C_p^n C_b^p [w_ax, w_ay, 0]]_EN.
+    """
+
+    layout = LAYOUT
+
+    def __init__(self, inputs: StaticInsInputs, tuning: Paper002Tuning = PAPER002,
+                 P0: np.ndarray | None = None,
+                 measurement_sigma: float | None = None) -> None:
+        self.inputs, self.tuning = inputs, tuning
+        self.t = inputs.t
+        self.batch, self.epochs = inputs.f_p.shape[:2]
+        self.T = inputs.step
+        B = self.batch
+        if P0 is not None:
+            P0 = np.broadcast_to(np.asarray(P0, dtype=float), (B, N_STATES, N_STATES))
+        self._P0 = tuning.initial_covariance(B) if P0 is None else P0.copy()
+        sigma = tuning.measurement_sigma if measurement_sigma is None else measurement_sigma
+        self._R = np.broadcast_to(sigma ** 2 * np.eye(2), (B, 2, 2))
+        self._Hb = np.broadcast_to(_H, (B, 2, N_STATES))
+        lat = np.asarray(inputs.lat, dtype=float)
+        self._omega = np.stack([np.zeros_like(lat), OMEGA_IE * np.cos(lat),
+                                OMEGA_IE * np.sin(lat)], -1)          # (B, 3)
+        self._x_lin = np.zeros((B, N_STATES))
+
+    def initial(self):
+        self._x_lin = np.zeros((self.batch, N_STATES))
+        return self._x_lin.copy(), self._P0.copy()
+
+    def _args(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.inputs.C_b_p_mid[:, k], self.inputs.f_p[:, k], self._omega
+
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        C_b_p, f_p, omega = self._args(k)
+        T = self.T
+        Cb, fb, wb = C_b_p[:, None], f_p[:, None], omega[:, None]
+
+        def fn(x: np.ndarray) -> np.ndarray:
+            return rk4_step(x, T, Cb, fb, wb)
+
+        def jacobian(x: np.ndarray) -> np.ndarray:
+            return rk4_jacobian(x, T, C_b_p, f_p, omega)
+
+        # Q_k = G q G^T T at the latest estimate (ALGORITHMS 0, "Units").
+        alpha = self._x_lin[:, ALPHA]
+        G = np.zeros((self.batch, N_STATES, 5))
+        G[:, DV, 0:2] = (C_p_n(alpha) @ C_b_p)[:, :2, :2]
+        G[:, ALPHA, 2:5] = -C_omega_inv(alpha) @ C_b_p
+        q = np.array([self.tuning.accel_psd * q_scale[1]] * 2
+                     + [self.tuning.gyro_psd * q_scale[0]] * 3)
+        Q = (G * q) @ np.swapaxes(G, -1, -2) * T
+        return Transition(noise=0.5 * (Q + np.swapaxes(Q, -1, -2)), fn=fn,
+                          jacobian=jacobian, angles=LAYOUT.angles)
+
+    def observation(self, k, r_scale=1.0):
+        return Observation(noise=r_scale * self._R, matrix=self._Hb,
+                           z=self.inputs.v_EN[:, k + 1].copy(), t=float(self.t[k + 1]))
+
+    def feedback(self, x, P, live):
+        """Open loop: keep x as the linearisation point of the process noise; x, P
+        unchanged."""
+        self._x_lin = np.where(live[:, None], x, self._x_lin)
+        return x, P
+
+    def attitude(self, k, x):
+        """C_b^n = C_p^n(alpha_hat) C_b^p(t_k) (B, 3, 3) (s = b)."""
+        return C_p_n(x[:, ALPHA]) @ self.inputs.C_b_p[:, k]
+
+    def attitude_sigma(self, k, P):
+        """1-sigma of the Euler errors alpha_E, alpha_N, alpha_U (B, 3), rad."""
+        return np.sqrt(np.maximum(np.diagonal(P[:, ALPHA, ALPHA], axis1=-2, axis2=-1), 0.0))

@@ -1,0 +1,327 @@
+"""The Monte Carlo campaign engine, generic over experiments (SPEC 6).
+
+An ``Experiment`` (a paper's definition: scenario, episode preparation = simulation +
+coarse stage, the fine model, the filters, starting errors, truth for the metrics and
+the paper-shaped tables) is run here: episodes are prepared in parallel processes and
+written to disk one at a time (atomically), so an interrupted campaign keeps what
+finished and ``resume`` continues it; the filters then run batched over all episodes;
+``scenarios.report`` writes the tidy table, time series, plots and JSON.
+"""
+from __future__ import annotations
+
+import json
+import os
+from abc import ABC, abstractmethod
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimators.alignment import FineResult, run_alignment
+from estimators.filters import UnknownFilter, filter_entry, make_filter
+from estimators.metrics import DivergenceRule, convergence_time, euler_error, misalignment
+from estimators.model import FilterModel, StateLayout
+from models.units import arcmin
+from scenarios.config import ConfigError, ScenarioConfig, load_scenario
+
+AXES = ("phi_E", "phi_N", "phi_U")
+
+
+class PreparedEpisode(ABC):
+    """What the filters need of one episode and its truth at the filter epochs.
+
+    Every prepared episode has: seed; C_s_n_true, C_b_n_true, C_s_b (K+1, 3, 3) at the
+    epoch boundaries (truth IMU and body attitude, the gimbal as the encoders read it);
+    lat (rad) and h (m), the known position. It saves itself as one .npz, atomically.
+    """
+
+    seed: int
+    C_s_n_true: np.ndarray
+    C_b_n_true: np.ndarray
+    C_s_b: np.ndarray
+
+    @abstractmethod
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything needed to rebuild the episode, as arrays."""
+
+    @classmethod
+    @abstractmethod
+    def from_arrays(cls, f: Any) -> "PreparedEpisode":
+        """Rebuild from ``arrays()`` (an npz file or a dict)."""
+
+    def save(self, path: Path) -> None:
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, **self.arrays())
+        os.replace(tmp, path)  # atomic: a file on disk is always a complete episode
+
+    @classmethod
+    def load(cls, path: Path) -> "PreparedEpisode":
+        with np.load(path) as f:
+            return cls.from_arrays(f)
+
+
+class Experiment(ABC):
+    """A paper's experiment (see the module docstring). Subclasses are frozen
+    dataclasses of settings (their ``asdict`` is the campaign manifest)."""
+
+    paper: str
+    scenario: str
+    default_filters: tuple[str, ...]
+    starts: tuple[str, ...]
+    rms_window: float
+    heading_threshold_arcmin: float
+    episode_class: type[PreparedEpisode]
+
+    def scenario_config(self) -> ScenarioConfig:
+        """The scenario, with the experiment's duration."""
+        return load_scenario(self.scenario).with_options(duration=self.duration)
+
+    @property
+    @abstractmethod
+    def duration(self) -> float:
+        """Simulated length of an episode, s."""
+
+    @abstractmethod
+    def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
+                        ) -> PreparedEpisode:
+        """Simulate one episode and run everything that does not depend on the filter."""
+
+    @abstractmethod
+    def start_errors(self, episodes: list[PreparedEpisode]) -> dict[str, np.ndarray]:
+        """Starting misalignment phi E, N, U (rad) of the fine stage per start name,
+        common (3,) or per episode (B, 3)."""
+
+    @abstractmethod
+    def model(self, episodes: list[PreparedEpisode], start_error: np.ndarray) -> FilterModel:
+        """The fine-alignment model for a batch of episodes from a starting error."""
+
+    def episode_start(self, episode: PreparedEpisode) -> np.ndarray:
+        """The default starting misalignment (3,) rad of one episode (the env's)."""
+        return np.asarray(self.start_errors([episode])[self.starts[0]], dtype=float)
+
+    @abstractmethod
+    def attitude_sigma(self) -> np.ndarray:
+        """The filter's initial 1-sigma misalignment E, N, U (3,), rad."""
+
+    @abstractmethod
+    def observed_states(self, layout: StateLayout) -> np.ndarray:
+        """Indices (<= 9) of the attitude and sensor-bias states, for the env's
+        observation."""
+
+    def filter_options(self) -> dict[str, Any]:
+        """Options of the adaptation policies (e.g. rho)."""
+        return {}
+
+    def nees(self, result: FineResult, episodes: list[PreparedEpisode],
+             error_n: np.ndarray) -> np.ndarray:
+        """NEES (B, K+1) of the states the truth knows; NaN where not defined."""
+        return np.full(error_n.shape[:2], np.nan)
+
+    def summary(self, result: "CampaignResult") -> dict:
+        """The JSON summary."""
+        return {"fine": fine_summary(result)}
+
+    def format_tables(self, result: "CampaignResult") -> str:
+        """The paper-shaped tables."""
+        return format_fine_table(result, self.starts[0])
+
+    def check_filters(self, filters: list[str]) -> None:
+        """One-line ConfigError for an unknown filter."""
+        for name in filters:
+            try:
+                filter_entry(name)
+            except UnknownFilter as exc:
+                raise ConfigError(str(exc)) from None
+
+
+def episode_seeds(seed: int, episodes: int) -> list[int]:
+    """Seeds of the campaign's episodes (episode i of campaign seed S: S * 10^6 + i)."""
+    return [seed * 1_000_000 + i for i in range(episodes)]
+
+
+@dataclass
+class FilterRun:
+    """Results of one filter from one starting error, for all episodes."""
+
+    filter: str
+    start: str
+    result: FineResult
+    error_n: np.ndarray        # (B, K+1, 3) rad
+    euler_error: np.ndarray    # (B, K+1, 3) rad: body pitch, roll, heading
+    nees: np.ndarray           # (B, K+1)
+    diverged: np.ndarray       # (B,)
+    reason: list[str]
+    heading_convergence: np.ndarray  # (B,) s after the start of fine alignment
+
+
+@dataclass
+class CampaignResult:
+    experiment: Experiment
+    seeds: list[int]
+    episodes: list[PreparedEpisode]
+    start_errors: dict[str, np.ndarray]
+    runs: list[FilterRun] = field(default_factory=list)
+
+    def summary(self) -> dict:
+        return self.experiment.summary(self)
+
+
+def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],
+                experiment: Experiment, divergence: DivergenceRule = DivergenceRule()
+                ) -> FilterRun:
+    """Errors, body Euler errors, NEES, divergence and convergence time of a run."""
+    K = result.t.size
+    C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
+    error_n = misalignment(C_true, result.C_s_n)
+    C_b_n_est = result.C_s_n @ np.swapaxes(np.stack([e.C_s_b[:K] for e in episodes]), -1, -2)
+    eul = euler_error(np.stack([e.C_b_n_true[:K] for e in episodes]), C_b_n_est)
+    diverged, reason = divergence.apply(error_n[:, -1], result.sigma_n[:, -1],
+                                        result.diverged, result.diverged_reason)
+    heading = convergence_time(result.t - result.t[0], error_n[:, :, 2],
+                               experiment.heading_threshold_arcmin * arcmin)
+    return FilterRun(filter=name, start=start, result=result, error_n=error_n,
+                     euler_error=eul, nees=experiment.nees(result, episodes, error_n),
+                     diverged=diverged, reason=reason, heading_convergence=heading)
+
+
+def run_filter(name: str, start: str, start_error: np.ndarray,
+               episodes: list[PreparedEpisode], experiment: Experiment) -> FilterRun:
+    """One filter on all episodes from a starting misalignment phi E, N, U (rad)."""
+    filt = make_filter(name, **experiment.filter_options())
+    result = run_alignment(filt, experiment.model(episodes, start_error))
+    return analyse_run(name, start, result, episodes, experiment)
+
+
+def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:
+    """The per-episode metrics of episode b of a run (one row of the tidy table)."""
+    r = run.result
+    t = r.t
+    in_window = t >= t[-1] - rms_window - 1e-9
+    rms = np.sqrt(np.mean(run.error_n[b, in_window] ** 2, axis=0)) / arcmin
+    row = {}
+    for prefix, values in (("final", run.error_n[b, -1] / arcmin), ("rms", rms),
+                           ("final_sigma", r.sigma_n[b, -1] / arcmin)):
+        row.update({f"{prefix}_{a}_arcmin": float(v) for a, v in zip(AXES, values)})
+    row.update({f"final_{a}_arcmin": float(v) for a, v in
+                zip(("pitch", "roll", "heading"), run.euler_error[b, -1] / arcmin)})
+    nees = run.nees[b, 1:]
+    row.update({
+        "heading_convergence_s": float(run.heading_convergence[b]),
+        "nees_mean": float(np.mean(nees)) if np.isfinite(nees).any() else None,
+        "nees_final": float(run.nees[b, -1]) if np.isfinite(run.nees[b, -1]) else None,
+        "diverged": bool(run.diverged[b]), "diverged_reason": run.reason[b],
+        "diverged_time_s": float(r.diverged_time[b] - t[0]) if r.diverged[b] else None,
+        "covariance_repairs": int(r.repairs[b]),
+        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0]})
+    return row
+
+
+def fine_summary(result: CampaignResult, window: float | None = None) -> dict:
+    """Per filter and start: mean, std, RMS of the final error per axis (arcmin), or of
+    the per-episode RMS over the last ``window`` s, and the fraction diverged."""
+    out: dict[str, dict[str, dict]] = {}
+    for run in result.runs:
+        if window is None:
+            final = run.error_n[:, -1] / arcmin
+        else:
+            t = run.result.t
+            sel = t >= t[-1] - window - 1e-9
+            final = np.sqrt(np.mean(run.error_n[:, sel] ** 2, axis=1)) / arcmin
+        out.setdefault(run.filter, {})[run.start] = {
+            "mean_arcmin": list(final.mean(0)), "std_arcmin": list(final.std(0)),
+            "rms_arcmin": list(np.sqrt((final ** 2).mean(0))),
+            "diverged_fraction": float(run.diverged.mean())}
+    return out
+
+
+def format_fine_table(result: CampaignResult, start: str, title: str | None = None) -> str:
+    """Final error per filter (mean, std, RMS per axis, arcmin) from one start."""
+    fine = fine_summary(result)
+    lines = [title or f"Fine alignment from the {start} start: final error (arcmin)",
+             f"{'filter':9s}{'stat':6s}" + "".join(f"{a:>12s}" for a in AXES)
+             + f"{'diverged':>10s}"]
+    for name, per_start in fine.items():
+        s = per_start[start]
+        for stat in ("mean", "std", "rms"):
+            tail = f"{s['diverged_fraction']:10.0%}" if stat == "mean" else ""
+            lines.append(f"{name if stat == 'mean' else '':9s}{stat:6s}"
+                         + "".join(f"{v:12.4f}" for v in s[f"{stat}_arcmin"]) + tail)
+    return "\n".join(lines)
+
+
+def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
+                resume: bool, workers: int, progress: bool = True) -> list[PreparedEpisode]:
+    """Prepare the episodes in parallel; each is saved as soon as it finishes. With
+    resume, episodes already on disk are loaded instead."""
+    from tqdm import tqdm
+
+    episode_dir = out_dir / "episodes" if out_dir is not None else None
+    if episode_dir is not None:
+        episode_dir.mkdir(parents=True, exist_ok=True)
+
+    def path(s: int) -> Path:
+        return episode_dir / f"seed_{s}.npz"
+
+    load = experiment.episode_class.load
+    done = {s: load(path(s)) for s in seeds
+            if resume and episode_dir is not None and path(s).is_file()}
+    todo = [s for s in seeds if s not in done]
+    bar = tqdm(total=len(seeds), initial=len(done), disable=not progress, desc="episodes")
+
+    def finish(s: int, episode: PreparedEpisode) -> None:
+        if episode_dir is not None:
+            episode.save(path(s))
+        done[s] = episode
+        bar.update()
+
+    if workers <= 1 or len(todo) <= 1:
+        for s in todo:
+            finish(s, experiment.prepare_episode(s))
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(experiment.prepare_episode, s): s for s in todo}
+            for fut in as_completed(futures):
+                finish(futures[fut], fut.result())
+    bar.close()
+    return [done[s] for s in seeds]
+
+
+def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
+                 filters: list[str] | None = None, out_dir: str | Path | None = None,
+                 resume: bool = False, workers: int | None = None,
+                 progress: bool = True) -> CampaignResult:
+    """Run an experiment's campaign; see the module docstring."""
+    from tqdm import tqdm
+
+    filters = list(filters or experiment.default_filters)
+    experiment.check_filters(filters)
+    if episodes < 1:
+        raise ConfigError(f"--episodes = {episodes} must be >= 1")
+    workers = workers or os.cpu_count() or 1
+    out = Path(out_dir) if out_dir is not None else None
+    if out is not None:
+        _check_manifest(out, experiment, seed, resume)
+    seeds = episode_seeds(seed, episodes)
+    prepared = prepare_all(experiment, seeds, out, resume, workers, progress)
+    result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared))
+    jobs = [(f, s) for f in filters for s in experiment.starts]
+    for name, start in tqdm(jobs, disable=not progress, desc="filters"):
+        result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
+                                      experiment))
+    return result
+
+
+def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    manifest = out / "campaign.json"
+    current = {"paper": experiment.paper, "experiment": asdict(experiment), "seed": seed}
+    current = json.loads(json.dumps(current))
+    if resume and manifest.is_file():
+        saved = json.loads(manifest.read_text())
+        saved.setdefault("paper", current["paper"])
+        if saved != current:
+            raise ConfigError(f"--resume: {manifest} was written by a different experiment "
+                              "or seed; use a new --out directory")
+    manifest.write_text(json.dumps(current, indent=2))

@@ -1,0 +1,37 @@
+"""Which experiment (paper pipeline) runs on which scenario: the campaign CLI, the
+gymnasium env and ``scenarios.evaluate`` are built from these."""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+from scenarios.config import ConfigError
+
+if TYPE_CHECKING:
+    from scenarios.campaign import Experiment
+
+PAPERS = ("paper002", "paper003")
+SCENARIO_PAPER = {"ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003",
+                  "static-large-azimuth": "paper002"}
+"""Shipped scenarios with an alignment pipeline (the env is registered for these)."""
+
+
+def experiment(paper: str, **settings) -> "Experiment":
+    """A paper's experiment with its default settings, overridden by ``settings``."""
+    if paper == "paper003":
+        from scenarios.paper003 import Paper003Experiment
+        cls = Paper003Experiment
+    elif paper == "paper002":
+        from scenarios.paper002 import Paper002Experiment
+        cls = Paper002Experiment
+    else:
+        raise ConfigError(f"unknown paper {paper!r}; valid choices: " + ", ".join(PAPERS))
+    return replace(cls(), **settings)
+
+
+def experiment_for(scenario: str, **settings) -> "Experiment":
+    """The experiment that runs on a shipped scenario."""
+    if scenario not in SCENARIO_PAPER:
+        raise ConfigError(f"scenario {scenario!r} has no alignment pipeline; valid: "
+                          + ", ".join(sorted(SCENARIO_PAPER)))
+    return experiment(SCENARIO_PAPER[scenario], scenario=scenario, **settings)
