@@ -62,16 +62,19 @@ def _sandwich(H: np.ndarray, P: np.ndarray) -> np.ndarray:
     return H @ P @ np.swapaxes(H, -1, -2)
 
 
-def _diagonal_selection(H: np.ndarray) -> np.ndarray:
-    """s_i of H = [S 0] with S = diag(s) (B, m); raises for any other H."""
+def _diagonal_selection(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For a scaled selection H (row i = s_i e_{j_i}^T, distinct j_i, the same in every
+    episode; 003's H = [diag(s) 0] is one): s (B, m) and the measured states j (m,).
+    Raises for any other H."""
+    nonzero = H != 0.0
+    cols = np.argmax(nonzero[0], axis=-1)
     m = H.shape[-2]
-    S = H[..., :m]
-    s = np.diagonal(S, axis1=-2, axis2=-1)
-    off = S - s[..., None] * np.eye(m)
-    if np.any(off != 0.0) or np.any(H[..., m:] != 0.0) or np.any(s == 0.0):
-        raise ValueError("multiple fading factors need H = [diag(s) 0]; use the single "
-                         "fading factor for this model")
-    return s
+    selection = np.zeros(H.shape[-2:], bool)
+    selection[np.arange(m), cols] = True
+    if (np.any(nonzero != selection) or len(set(cols.tolist())) != m):
+        raise ValueError("multiple fading factors need H = [diag(s) 0] up to a selection "
+                         "of the states; use the single fading factor for this model")
+    return H[..., np.arange(m), cols], cols
 
 
 class AdaptationPolicy(ABC):
@@ -175,10 +178,10 @@ class _PerAxisFading(InnovationFading):
     def _factors(self, N: np.ndarray, J: np.ndarray, ctx: AdaptationContext
                  ) -> tuple[np.ndarray, np.ndarray]:
         """Factors (B, m) and the full congruence matrix L (B, n, n)."""
-        s = _diagonal_selection(ctx.H)
+        s, cols = _diagonal_selection(ctx.H)
         m, n = s.shape[-1], J.shape[-1]
         self.n_factors = m
-        J_mm = s[..., :, None] * J[..., :m, :m] * s[..., None, :]
+        J_mm = s[..., :, None] * J[..., cols[:, None], cols] * s[..., None, :]
         U = None
         if self.axes == "local-level":
             if ctx.axes is None:
@@ -195,9 +198,9 @@ class _PerAxisFading(InnovationFading):
         lam = self._bound(lam)
         L = np.broadcast_to(np.eye(n), J.shape).copy()
         if U is None:
-            L[..., np.arange(m), np.arange(m)] = lam
+            L[..., cols, cols] = lam
         else:
-            L[..., :m, :m] = np.swapaxes(U, -1, -2) @ (lam[..., :, None] * U)
+            L[..., cols[:, None], cols] = np.swapaxes(U, -1, -2) @ (lam[..., :, None] * U)
         return lam, L
 
 

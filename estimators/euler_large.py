@@ -259,7 +259,13 @@ def continuous_dynamics(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
     # ALGORITHMS (3.5): alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie - C_b^p eps].
     w = omega_ie - _mv(Ct, omega_ie) - _mv(C_b_p, x[..., EPS])
     out = np.zeros(np.broadcast_shapes(x.shape, f_p.shape[:-1] + (N_STATES,)))
-    out[..., ALPHA] = _mv(C_omega_inv(alpha), w)
+    # C_omega^-1 w written out (C_omega_inv): no 3x3 stack per point.
+    sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
+    sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
+    a = sN * w[..., 0] - cN * w[..., 2]
+    out[..., 0] = cN * w[..., 0] + sN * w[..., 2]
+    out[..., 1] = w[..., 1] + a * sE / cE
+    out[..., 2] = -a / cE
     # dv_dot = [(I - C_p^n) f^p + C_p^n C_b^p [nabla_x, nabla_y, 0]]_EN.
     b = C_b_p[..., :, 0] * x[..., 5:6] + C_b_p[..., :, 1] * x[..., 6:7]
     out[..., DV] = (f_p - _mv(C, f_p - b))[..., :2]
@@ -293,6 +299,9 @@ def continuous_jacobian(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
 
 def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Batched matrix-vector product A (..., m, n) v (..., n) -> (..., m)."""
+    if A.shape[-1] == 3:  # explicit: several times faster than einsum for 3x3 stacks
+        return (A[..., 0] * v[..., None, 0] + A[..., 1] * v[..., None, 1]
+                + A[..., 2] * v[..., None, 2])
     return np.einsum("...ij,...j->...i", A, v)
 
 

@@ -119,7 +119,7 @@ class SigmaPointRule(IntegrationRule):
         n = mean.shape[-1]
         xi, wm, wc = self.points(n)
         S = _sqrt_psd(cov)
-        chi = mean[:, None, :] + np.einsum("bij,kj->bki", S, xi)
+        chi = mean[:, None, :] + xi @ np.swapaxes(S, -1, -2)
         centre = int(np.argmin(np.einsum("ki,ki->k", xi, xi)))
         return weighted_moments(fmap(chi), chi - mean[:, None, :], wm, wc, fmap.angles,
                                 centre)
@@ -136,12 +136,13 @@ def weighted_moments(y: np.ndarray, dx: np.ndarray, wm: np.ndarray, wc: np.ndarr
         ref = y[:, centre:centre + 1, idx]
         y = y.copy()
         y[..., idx] = ref + wrap_angle(y[..., idx] - ref)
-    mean = np.einsum("k,bki->bi", wm, y)
+    mean = (wm @ y)                                    # (B, d)
     d = y - mean[:, None, :]
     if angles:
         mean[:, idx] = wrap_angle(mean[:, idx])
-    cov = np.einsum("k,bki,bkj->bij", wc, d, d)
-    cross = np.einsum("k,bki,bkj->bij", wc, dx, d)
+    d_w = np.swapaxes(d * wc[:, None], -1, -2)         # (B, d, P)
+    cov = d_w @ d
+    cross = np.swapaxes(d_w @ dx, -1, -2)
     return mean, _symmetric(cov), cross
 
 

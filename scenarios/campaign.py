@@ -99,7 +99,8 @@ class Experiment(ABC):
 
     def episode_start(self, episode: PreparedEpisode) -> np.ndarray:
         """The default starting misalignment (3,) rad of one episode (the env's)."""
-        return np.asarray(self.start_errors([episode])[self.starts[0]], dtype=float)
+        start = self.start_errors([episode])[self.starts[0]]
+        return np.asarray(start, dtype=float).reshape(-1, 3)[0]
 
     @abstractmethod
     def attitude_sigma(self) -> np.ndarray:

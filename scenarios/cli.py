@@ -64,11 +64,15 @@ def build_parser() -> argparse.ArgumentParser:
     fid.add_argument("--seed", type=_seed, default=0, metavar="N")
     fid.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ")
     bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison")
-    bench.add_argument("paper", choices=["paper003"], help="which paper's experiment")
-    bench.add_argument("--episodes", type=_positive_int("--episodes"), default=50, metavar="N")
+    bench.add_argument("paper", choices=["paper002", "paper003"],
+                       help="which paper's experiment")
+    bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
+                       help="Monte Carlo episodes (default: 100 for paper002, 50 for "
+                       "paper003)")
     bench.add_argument("--seed", type=_seed, default=0, metavar="S", help="campaign seed")
-    bench.add_argument("--filters", default="kf,sakf,makf,imakf",
-                       help="comma-separated filter names (default: kf,sakf,makf,imakf)")
+    bench.add_argument("--filters", help="comma-separated filter names (default: "
+                       "ekf,ukf,sghkf-2,sghkf-4 for paper002; kf,sakf,makf,imakf for "
+                       "paper003)")
     bench.add_argument("--out", metavar="DIR", help="directory for tables, series and plots")
     bench.add_argument("--json", metavar="FILE", help="write the summary as JSON")
     bench.add_argument("--resume", action="store_true",
@@ -91,21 +95,31 @@ def _positive_int(field: str):
     return parse
 
 
+DEFAULT_EPISODES = {"paper002": 100, "paper003": 50}
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from scenarios.paper003 import run_campaign
+    from scenarios.campaign import run_campaign
+    from scenarios.experiments import experiment
     from scenarios.report import format_tables, write_outputs
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
-    filters = [f.strip() for f in args.filters.split(",") if f.strip()]
+    exp = experiment(args.paper)
+    filters = (list(exp.default_filters) if args.filters is None
+               else [f.strip() for f in args.filters.split(",") if f.strip()])
+    if not filters:
+        raise ConfigError("--filters is empty; give at least one filter name")
+    episodes = args.episodes or DEFAULT_EPISODES[args.paper]
     start = time.perf_counter()
-    result = run_campaign(episodes=args.episodes, seed=args.seed, filters=filters,
+    result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
                           out_dir=args.out, resume=args.resume, workers=args.workers)
     elapsed = time.perf_counter() - start
     print(format_tables(result))
     for path in write_outputs(result, args.out, args.json):
         print(f"wrote {path}")
-    print(f"{args.episodes} episodes x {len(filters)} filters x 2 starts in {elapsed:.1f} s")
+    print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s) in "
+          f"{elapsed:.1f} s")
     return 0
 
 

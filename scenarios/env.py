@@ -29,6 +29,7 @@ from gymnasium import spaces
 from estimators.filters import UnknownFilter, filter_entry, make_filter
 from estimators.alignment import AlignmentRun
 from estimators.metrics import misalignment
+from models.attitude import dcm_to_quat
 from models.units import arcmin
 from scenarios.config import ConfigError
 from scenarios import campaign
@@ -203,17 +204,30 @@ class AlignmentEnv(gym.Env):
 
         if self._world is None:
             seed = getattr(self, "_episode_seed", 0)
-            self._world = make_world(self.config, episode_rngs(seed)["motion"])
+            rng = episode_rngs(seed)["motion"]
+            if self.config.world == "ship-waves":
+                from models.waves import WaveShipWorld
+                self._world = WaveShipWorld(self.config.motion, rng)
+            else:
+                self._world = make_world(self.config, rng)
         world = self._world
         if self._renderer is None:
             height, width = self._render_size
             self._renderer = mujoco.Renderer(world.model, height, width)
             self._camera = mujoco.MjvCamera()
-            self._camera.distance, self._camera.elevation = 160.0, -25.0
+            distance = 6.0 if self.config.world == "static-platform" else 160.0
+            self._camera.distance, self._camera.elevation = distance, -25.0
             self._camera.azimuth = 120.0
-        t = 0.0 if self._run is None else float(self._run.t[self._run.k])
-        qpos, qvel, _ = world.joint_state(np.array([t]))
-        world.data.qpos[:], world.data.qvel[:] = qpos[0], qvel[0]
+        k = 0 if self._run is None else self._run.k
+        if hasattr(world, "joint_state"):  # prescribed motion: MuJoCo at time t
+            qpos, qvel, _ = world.joint_state(np.array([float(self._run.t[k]) if self._run
+                                                        else 0.0]))
+            world.data.qpos[:], world.data.qvel[:] = qpos[0], qvel[0]
+        elif hasattr(self, "_episode"):  # dynamic world: posed from the episode's truth
+            C_s_b = self._episode.C_s_b[k]
+            world.data.qpos[3:7] = dcm_to_quat(self._episode.C_b_n_true[k])
+            world.data.qpos[world._gimbal_qpos] = [np.arctan2(-C_s_b[0, 1], C_s_b[1, 1]),
+                                                   np.arctan2(C_s_b[2, 1], C_s_b[2, 2])]
         mujoco.mj_forward(world.model, world.data)
         self._camera.lookat[:] = world.data.xpos[world.model.body("carrier").id]
         self._renderer.update_scene(world.data, self._camera)

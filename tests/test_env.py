@@ -88,7 +88,8 @@ def test_rgb_array_frames_and_video(env_id, tmp_path):
     while not env.step(np.zeros(env.action_space.shape, np.float32))[2]:
         pass
     later = env.render()
-    assert not np.array_equal(frame, later)  # the ship moved
+    if "Static" not in env_id:
+        assert not np.array_equal(frame, later)  # the carrier moved
     env.close()
     assert video.stat().st_size > 1000
 

@@ -1,0 +1,208 @@
+"""Benchmark: the cost of the paper-002 campaign (static base, 58.5 deg azimuth error,
+10-state Euler-angle model) per filter, and our batched UKF against filterpy's
+UnscentedKalmanFilter on the same model and data.
+
+1. Campaign cost: the episodes are prepared once (``prepare_all``, 2 worker processes,
+   as ``run_campaign(..., workers=2)`` does); then per filter (ekf, ukf, sghkf-2,
+   sghkf-4) what ``run_campaign`` runs for it: the model for the batch of all episodes,
+   the filter (``run_alignment``) and the analysis (errors, NEES, convergence). Printed:
+   wall times, their total (= the campaign of the four filters), the filter's ms per
+   epoch per episode (batched), and the points per epoch (evaluations of the process
+   map per episode).
+2. Our UKF (``make_filter("ukf")``: alpha 1, beta 2, kappa 0) batched over the episodes
+   versus ``filterpy.kalman.UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints(10, 1,
+   2, 0)`` (the same UT), episode by episode: fx calls our model's transition on one
+   point, hx(x) = H x, Q and R from the model each epoch, angle states 0..2 averaged
+   and differenced with wrapping (x_mean_fn, residual_x, state_add), ``model.feedback``
+   after each update. Both run the first ``--compare-seconds`` of the same episodes.
+   Printed: time per episode-epoch of each, the speed-up, and the difference of the
+   estimates (heading at the end and over the run, whole state, heading sigma).
+
+Run: python benchmarks/bench_paper002.py [--episodes 100] [--filterpy-episodes 3]
+     [--compare-seconds 120]
+(--episodes 100 takes about 3-4 min on 2 cores, most of it sghkf-4.)
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+from estimators.alignment import AlignmentRun, run_alignment
+from estimators.filters import make_filter
+from estimators.model import wrap_angle
+from models.units import arcmin, arcsec, deg
+from scenarios.campaign import analyse_run, episode_seeds, prepare_all
+from scenarios.experiments import experiment as make_experiment
+
+FILTERS = ("ekf", "ukf", "sghkf-2", "sghkf-4")
+START = "large-azimuth"
+N = 10
+
+
+def campaign_cost(experiment, episodes) -> float:
+    """Part 1: per filter the model, filter and analysis wall times on all episodes."""
+    B = len(episodes)
+    start_error = experiment.start_errors(episodes)[START]
+    total = 0.0
+    print(f"{'filter':9s}{'points':>7s}{'model s':>9s}{'filter s':>10s}{'analysis s':>12s}"
+          f"{'total s':>9s}{'ms/epoch/episode':>18s}{'(wall)':>8s}")
+    for name in FILTERS:
+        t0 = time.perf_counter()
+        model = experiment.model(episodes, start_error)
+        t1 = time.perf_counter()
+        result = run_alignment(make_filter(name, **experiment.filter_options()), model)
+        t2 = time.perf_counter()
+        run = analyse_run(name, START, result, episodes, experiment)
+        t3 = time.perf_counter()
+        K = result.t.size - 1
+        total += t3 - t0
+        diverged = int(run.diverged.sum())
+        print(f"{name:9s}{make_filter(name).rule.point_count(N):7d}{t1 - t0:9.2f}"
+              f"{t2 - t1:10.2f}{t3 - t2:12.2f}{t3 - t0:9.2f}"
+              f"{result.seconds_per_epoch * 1e3 / B:18.3f}{(t2 - t1) * 1e3 / (K * B):8.3f}"
+              + (f"   ({diverged} diverged)" if diverged else ""))
+    return total
+
+
+# -- filterpy side -----------------------------------------------------------------------
+
+ANGLES = [0, 1, 2]
+
+
+def x_mean(sigmas: np.ndarray, Wm: np.ndarray) -> np.ndarray:
+    """Weighted mean with the angles unwrapped around sigma point 0 (the mean), as our
+    rules do (estimators.rules.weighted_moments), then wrapped."""
+    s = np.array(sigmas, dtype=float)
+    ref = s[0, ANGLES]
+    s[:, ANGLES] = ref + wrap_angle(s[:, ANGLES] - ref)
+    x = Wm @ s
+    x[ANGLES] = wrap_angle(x[ANGLES])
+    return x
+
+
+def residual_x(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    d = np.subtract(a, b)
+    d[ANGLES] = wrap_angle(d[ANGLES])
+    return d
+
+
+def state_add(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
+    y = np.add(x, dx)
+    y[ANGLES] = wrap_angle(y[ANGLES])
+    return y
+
+
+def filterpy_episode(experiment, episode, start_error: np.ndarray, epochs: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """filterpy's UKF on one episode for ``epochs`` epochs: posterior heading per epoch
+    (epochs,), final state (10,) and covariance (10, 10)."""
+    model = experiment.model([episode], start_error[None])
+    x0, P0 = model.initial()
+    points = MerweScaledSigmaPoints(n=N, alpha=1.0, beta=2.0, kappa=0.0)
+    ukf = UnscentedKalmanFilter(dim_x=N, dim_z=2, dt=model.T, hx=None, fx=None,
+                                points=points, x_mean_fn=x_mean, residual_x=residual_x,
+                                state_add=state_add)
+    ukf.x, ukf.P = x0[0].copy(), P0[0].copy()
+    live = np.ones(1, bool)
+    heading = np.empty(epochs)
+    for k in range(epochs):
+        tr = model.transition(k)
+        obs = model.observation(k)
+        H = obs.matrix[0]
+        ukf.Q = tr.noise[0]
+        ukf.R = obs.noise[0]
+        ukf.predict(fx=lambda x, dt: tr.fn(x[None, None])[0, 0])
+        ukf.update(obs.z[0], hx=lambda x: H @ x)
+        x, P = model.feedback(ukf.x[None], ukf.P[None], live)
+        ukf.x, ukf.P = x[0], P[0]
+        heading[k] = ukf.x[2]
+    return heading, ukf.x.copy(), ukf.P.copy()
+
+
+def ours(experiment, episodes, start_error, epochs):
+    """Our batched UKF for ``epochs`` epochs: the run (x per epoch) and wall seconds."""
+    t0 = time.perf_counter()
+    run = AlignmentRun(make_filter("ukf"), experiment.model(episodes, start_error))
+    for _ in range(epochs):
+        run.step()
+    return run, time.perf_counter() - t0
+
+
+def compare_filterpy(experiment, episodes, n_filterpy: int, seconds: float) -> None:
+    """Part 2 (see the module docstring)."""
+    epochs = int(round(seconds / experiment.filter_step))
+    start = experiment.start_errors(episodes)[START]
+    B = len(episodes)
+    run_all, wall_all = ours(experiment, episodes, start, epochs)
+    few = episodes[:n_filterpy]
+    run_few, wall_few = ours(experiment, few, start[:n_filterpy], epochs)
+    fp_wall = 0.0
+    rows = []
+    for b, episode in enumerate(few):
+        t0 = time.perf_counter()
+        heading, x_fp, P_fp = filterpy_episode(experiment, episode, start[b], epochs)
+        fp_wall += time.perf_counter() - t0
+        x_ours = run_all.filt.x[b]
+        P_ours = run_all.filt.P[b]
+        d_final = wrap_angle(x_ours[2] - x_fp[2])
+        d_run = np.abs(wrap_angle(run_all.x[b, 1:epochs + 1, 2] - heading)).max()
+        dx = np.abs(np.r_[wrap_angle(x_ours[:3] - x_fp[:3]), x_ours[3:] - x_fp[3:]])
+        dx_rel = dx / np.sqrt(np.diag(P_ours))
+        d_sigma = np.sqrt(P_ours[2, 2]) - np.sqrt(P_fp[2, 2])
+        dP_rel = np.abs(P_ours - P_fp).max() / np.abs(P_ours).max()
+        rows.append((episode.seed, x_ours[2], d_final, d_run, dx_rel.max(), d_sigma, dP_rel))
+    ours_us = wall_all * 1e6 / (B * epochs)
+    few_us = wall_few * 1e6 / (n_filterpy * epochs)
+    fp_us = fp_wall * 1e6 / (n_filterpy * epochs)
+    print(f"our UKF, batch of {B:3d}: {ours_us:9.1f} us per episode-epoch "
+          f"({wall_all:.2f} s)")
+    print(f"our UKF, batch of {n_filterpy:3d}: {few_us:9.1f} us per episode-epoch "
+          f"({wall_few:.2f} s)")
+    print(f"filterpy UKF, loop:     {fp_us:9.1f} us per episode-epoch ({fp_wall:.2f} s)")
+    print(f"speed-up (ours batched {B} / filterpy): {fp_us / ours_us:.1f}x   "
+          f"(ours batched {n_filterpy}: {fp_us / few_us:.1f}x; target >= 20x)")
+    print(f"agreement after {seconds:g} s (ours - filterpy):")
+    print(f"{'seed':>8s}{'heading est':>13s}{'final dh (rad)':>16s}{'max |dh| run':>14s}"
+          f"{'max |dx|/sigma':>16s}{'d sigma_h (rad)':>17s}{'max |dP|/max|P|':>17s}")
+    for seed, h, d_final, d_run, dx_rel, d_sigma, dP_rel in rows:
+        print(f"{seed:8d}{h / deg:12.4f}d{d_final:16.2e}{d_run:14.2e}{dx_rel:16.2e}"
+              f"{d_sigma:17.2e}{dP_rel:17.2e}")
+    worst = max(abs(r[2]) for r in rows)
+    print(f"max |final heading difference| = {worst:.2e} rad = {worst / arcsec:.2e} arcsec "
+          f"({worst / arcmin:.2e} arcmin)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--filterpy-episodes", type=int, default=3)
+    parser.add_argument("--compare-seconds", type=float, default=120.0)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    experiment = make_experiment("paper002")
+    seeds = episode_seeds(0, args.episodes)
+    print(f"paper002 campaign: {args.episodes} episodes, {experiment.fine_duration:g} s "
+          f"({experiment.fine_duration / experiment.filter_step:.0f} epochs), "
+          f"{args.workers} workers, {os.cpu_count()} cores")
+    t0 = time.perf_counter()
+    episodes = prepare_all(experiment, seeds, None, False, args.workers, progress=False)
+    prep = time.perf_counter() - t0
+    print(f"episode preparation (simulation + open-loop INS), {args.workers} workers: "
+          f"{prep:.2f} s wall ({prep / args.episodes * 1e3:.0f} ms per episode)")
+    filters = campaign_cost(experiment, episodes)
+    print(f"total: {prep + filters:.1f} s wall (preparation {prep:.1f} s + filters "
+          f"{filters:.1f} s); ms/epoch/episode = filter compute per epoch / episodes "
+          f"(batched), (wall) = filter wall incl. set-up")
+    print()
+    n_fp = min(args.filterpy_episodes, args.episodes)
+    print(f"UKF: ours (batched) vs filterpy (per episode), first {args.compare_seconds:g} s "
+          f"of the same episodes, same model, Q, R, P0; {n_fp} episodes for filterpy")
+    compare_filterpy(experiment, episodes, n_fp, args.compare_seconds)
+
+
+if __name__ == "__main__":
+    main()

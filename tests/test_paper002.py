@@ -1,0 +1,136 @@
+"""Paper 002 (static base, large azimuth error) checked against physics: the static
+self-alignment floors, convergence from 58.5 deg where a small-angle KF stalls, and the
+campaign's output contract; and paper 003's numbers unchanged by the framework."""
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from estimators.alignment import run_alignment
+from estimators.euler_large import EulerLargeMisalignmentModel, rk4_jacobian
+from estimators.filters import make_filter
+from estimators.model import Transition
+from models.earth import OMEGA_IE, normal_gravity
+from models.units import arcmin, deg_per_h, ug
+from scenarios.campaign import analyse_run
+from scenarios.cli import main
+from scenarios.experiments import experiment
+from sensors.imu import ImuSpec, TriadSpec
+
+FIXED_BIASES = ImuSpec(
+    gyro=TriadSpec(bias_fixed=(0.01 * deg_per_h, -0.008 * deg_per_h, 0.006 * deg_per_h),
+                   white_noise_density=0.01 * deg_per_h),
+    accel=TriadSpec(bias_fixed=(40 * ug, -50 * ug, 30 * ug)))
+
+
+def episode(duration, azimuth_deg, level_deg=0.5, seed=3):
+    exp = experiment("paper002", fine_duration=duration, azimuth_error_deg=azimuth_deg,
+                     level_error_sigma_deg=level_deg)
+    config = replace(exp.scenario_config(), imu=FIXED_BIASES)
+    return exp, exp.prepare_episode(seed, config)
+
+
+def run(name, exp, ep, model=None):
+    model = model or exp.model([ep], ep.start_error[None])
+    return analyse_run(name, "x", run_alignment(make_filter(name), model), [ep], exp)
+
+
+def static_floor(ep):
+    """Static self-alignment floors phi E, N, U (rad): phi_E = -b_N/g, phi_N = b_E/g,
+    phi_U = -eps_E/(Omega cos L) + phi_N tan L."""
+    C = ep.C_s_n_true[-1]
+    eps_n, nabla_n = C @ ep.gyro_bias, C @ ep.accel_bias
+    g = normal_gravity(ep.lat, ep.h)
+    phi_N = nabla_n[0] / g
+    return np.array([-nabla_n[1] / g, phi_N,
+                     -eps_n[0] / (OMEGA_IE * np.cos(ep.lat)) + phi_N * np.tan(ep.lat)])
+
+
+def test_long_static_run_reaches_the_physical_floors():
+    """3600 s, the paper's P0/Q/R, EKF from a 5 deg azimuth error: every axis within 10 %
+    of the floor."""
+    exp, ep = episode(3600.0, 5.0)
+    floor = static_floor(ep)
+    final = run("ekf", exp, ep).error_n[0, -1]
+    np.testing.assert_allclose(final, floor, rtol=0.1)
+
+
+class SmallAngleModel(EulerLargeMisalignmentModel):
+    """The same model linearised once at alpha = 0: a linear small-angle KF."""
+
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        full = super().transition(k, q_scale)
+        C_b_p, f_p, omega = self._args(k)
+        Phi = rk4_jacobian(np.zeros((self.batch, 10)), self.T, C_b_p, f_p, omega)
+        return Transition(noise=full.noise, matrix=Phi)
+
+
+@pytest.fixture(scope="module")
+def large_azimuth():
+    return episode(600.0, 58.5)
+
+
+@pytest.mark.parametrize("name", ["ukf", "sghkf-3"])
+def test_sigma_point_filters_converge_from_58_deg(large_azimuth, name):
+    exp, ep = large_azimuth
+    result = run(name, exp, ep)
+    assert abs(result.error_n[0, -1, 2]) < 60 * arcmin
+    assert np.all(np.abs(result.error_n[0, -1, :2]) < 1 * arcmin)
+    assert not result.diverged[0]
+
+
+def test_small_angle_kf_does_not_converge_from_58_deg(large_azimuth):
+    exp, ep = large_azimuth
+    small = SmallAngleModel(exp.model([ep], ep.start_error[None]).inputs, exp.tuning())
+    assert abs(run("kf", exp, ep, small).error_n[0, -1, 2]) > 5 * 60 * arcmin
+
+
+def test_bench_paper002_json_and_resume(tmp_path):
+    out = tmp_path / "b"
+    args = ["bench", "paper002", "--episodes", "2", "--filters", "ekf,sghkf-2", "--out",
+            str(out), "--workers", "1"]
+    assert main(args + ["--json", str(tmp_path / "a.json")]) == 0
+    summary = json.loads((tmp_path / "a.json").read_text())
+    assert set(summary) == {"fine"} and set(summary["fine"]) == {"ekf", "sghkf-2"}
+    for stats in summary["fine"].values():
+        assert set(stats) == {"mean_arcmin", "std_arcmin", "rms_arcmin", "diverged_fraction",
+                              "convergence_s", "points", "us_per_epoch"}
+        assert len(stats["rms_arcmin"]) == 3
+    assert summary["fine"]["sghkf-2"]["points"] == 21  # 2n + 1, n = 10
+    assert len((out / "results.csv").read_text().splitlines()) == 1 + 2 * 2
+    (out / "episodes" / "seed_1.npz").unlink()  # as if interrupted
+    assert main(args + ["--resume", "--json", str(tmp_path / "b.json")]) == 0
+    assert json.loads((tmp_path / "b.json").read_text())["fine"]["ekf"]["rms_arcmin"] == \
+        summary["fine"]["ekf"]["rms_arcmin"]
+
+
+def test_bench_bad_filter_level_is_one_line(capsys):
+    assert main(["bench", "paper002", "--filters", "sghkf-0", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "sparse-grid level must be an integer in [1, 6]" in err
+    assert "Traceback" not in err
+
+
+BASELINE = Path(__file__).parent / "baselines" / "paper003_seed7.json"
+
+
+def test_paper003_numbers_unchanged_by_the_framework():
+    """Regression: the paper-003 campaign (2 episodes, seed 7) gives the numbers the
+    pre-framework code gave (stored baseline), to 1e-9 relative."""
+    from scenarios.paper003 import coarse_errors, run_campaign
+
+    ref = json.loads(BASELINE.read_text())
+    filters = sorted({key.split("/")[0] for key in ref["runs"]})
+    result = run_campaign(episodes=2, seed=7, filters=filters, workers=1, progress=False)
+    np.testing.assert_allclose(coarse_errors(result), ref["coarse"], rtol=1e-12)
+    for r in result.runs:
+        stored = ref["runs"][f"{r.filter}/{r.start}"]
+        np.testing.assert_allclose(r.error_n[:, -1], stored["final_error_rad"], rtol=1e-9)
+        np.testing.assert_allclose(r.error_n[:, 100], stored["error_100s_rad"], rtol=1e-9)
+        np.testing.assert_allclose(r.result.sigma_n[:, -1], stored["final_sigma_rad"],
+                                   rtol=1e-9)
+        np.testing.assert_allclose(r.result.factors.sum(axis=(1, 2)), stored["factors_sum"],
+                                   rtol=1e-9)
+        np.testing.assert_allclose(r.nees[:, -1], stored["nees_final"], rtol=1e-9)
