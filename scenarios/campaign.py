@@ -74,9 +74,23 @@ class Experiment(ABC):
     heading_threshold_arcmin: float
     episode_class: type[PreparedEpisode]
 
+    worlds: tuple[str, ...] = ()
+    """The MuJoCo worlds the experiment's pipeline runs on."""
+    filter_keys: tuple[str, ...] = ()
+    """Keys the experiment accepts in a scenario's [filter] table."""
+
     def scenario_config(self) -> ScenarioConfig:
-        """The scenario, with the experiment's duration."""
-        return load_scenario(self.scenario).with_options(duration=self.duration)
+        """The scenario (a shipped name or a .toml path), with the experiment's
+        duration; its world and [filter] table checked against the experiment."""
+        config = load_scenario(self.scenario).with_options(duration=self.duration)
+        if config.world not in self.worlds:
+            raise ConfigError(f"paper{self.paper} runs on the {' or '.join(self.worlds)} "
+                              f"world; scenario {config.name!r} has world = {config.world!r}")
+        for key, _ in config.filter:
+            if key not in self.filter_keys:
+                raise ConfigError(f"filter.{key} is not a parameter of paper{self.paper}; "
+                                  "valid: " + (", ".join(self.filter_keys) or "none"))
+        return config
 
     @property
     @abstractmethod
@@ -127,6 +141,10 @@ class Experiment(ABC):
     def format_tables(self, result: "CampaignResult") -> str:
         """The paper-shaped tables."""
         return format_fine_table(result, self.starts[0])
+
+    def check(self, config: ScenarioConfig) -> None:
+        """One-line ConfigError for settings of the scenario the experiment cannot use
+        (called before any episode is simulated)."""
 
     def check_filters(self, filters: list[str]) -> None:
         """One-line ConfigError for an unknown filter."""
@@ -298,6 +316,7 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
 
     filters = list(filters or experiment.default_filters)
     experiment.check_filters(filters)
+    experiment.check(experiment.scenario_config())
     if episodes < 1:
         raise ConfigError(f"--episodes = {episodes} must be >= 1")
     workers = workers or os.cpu_count() or 1

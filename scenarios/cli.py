@@ -69,6 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
                        help="Monte Carlo episodes (default: 100 for paper002, 50 for "
                        "paper003)")
+    bench.add_argument("--scenario", metavar="NAME|FILE.toml",
+                       help="scenario to run the paper's experiment on (default: the "
+                       "paper's: static-large-azimuth for paper002, ship-sway-rotary for "
+                       "paper003); a .toml may carry a [filter] table")
     bench.add_argument("--seed", type=_seed, default=0, metavar="S", help="campaign seed")
     bench.add_argument("--filters", help="comma-separated filter names (default: "
                        "ekf,ukf,sghkf-2,sghkf-4 for paper002; kf,sakf,makf,imakf for "
@@ -105,7 +109,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
-    exp = experiment(args.paper)
+    exp = (experiment(args.paper) if args.scenario is None
+           else experiment(args.paper, scenario=args.scenario))
     filters = (list(exp.default_filters) if args.filters is None
                else [f.strip() for f in args.filters.split(",") if f.strip()])
     if not filters:

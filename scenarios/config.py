@@ -91,6 +91,9 @@ class ScenarioConfig:
     random_linear_phase: bool
     odometer: OdometerSpec | None = None
     gps: GpsSpec | None = None
+    filter: tuple[tuple[str, Any], ...] = ()
+    """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
+    scenario's experiment validates (e.g. paper 002's initial_covariance)."""
 
     def with_options(self, duration: float | None = None, imu_rate: float | None = None
                      ) -> "ScenarioConfig":
@@ -208,13 +211,15 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
+    filter_table = tuple(sorted(section("filter", False).items()))
     try:
         config = ScenarioConfig(
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
             world=world, latitude=origin["latitude"], longitude=origin["longitude"],
             height=origin["height"], duration=run["duration"], imu_rate=run["imu_rate"],
             imu_preset=preset, imu=IMU_PRESETS[preset], encoder=encoder, motion=motion_obj,
-            random_linear_phase=random_phase, odometer=odometer, gps=gps)
+            random_linear_phase=random_phase, odometer=odometer, gps=gps,
+            filter=filter_table)
     except KeyError as exc:
         raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
     config.validate()

@@ -52,6 +52,8 @@ class Paper002Experiment(Experiment):
     heading_threshold_arcmin: float = 60.0
 
     paper = "002"
+    worlds = ("static-platform",)
+    filter_keys = ("euler_sigma", "initial_covariance")
     default_filters = ("ekf", "ukf", "sghkf-2", "sghkf-4")
     starts = (START,)
 
@@ -63,8 +65,45 @@ class Paper002Experiment(Experiment):
     def duration(self) -> float:
         return self.fine_duration
 
-    def tuning(self) -> Paper002Tuning:
-        return replace(PAPER002, gyro_bias_sigma=self.gyro_bias_prior_deg_h * deg_per_h)
+    def tuning(self, config: ScenarioConfig | None = None) -> Paper002Tuning:
+        """The paper's tuning with the drift prior of this experiment and the scenario's
+        [filter] euler_sigma_deg (3 values, (0, 90] deg), if given."""
+        tuning = replace(PAPER002, gyro_bias_sigma=self.gyro_bias_prior_deg_h * deg_per_h)
+        table = dict((config or self.scenario_config()).filter)
+        if "euler_sigma" in table:
+            sigma = np.asarray(table["euler_sigma"], dtype=float)
+            if sigma.shape != (3,) or not np.all((sigma > 0) & (sigma <= np.pi / 2)):
+                raise ConfigError("filter.euler_sigma_deg must be 3 values in (0, 90] deg, "
+                                  f"got {np.rad2deg(sigma).tolist()}")
+            tuning = replace(tuning, euler_sigma=tuple(sigma))
+        return tuning
+
+    def initial_covariance(self, config: ScenarioConfig | None = None) -> np.ndarray | None:
+        """The scenario's [filter] initial_covariance (10 x 10, SI, state order of
+        ``estimators.euler_large``), checked symmetric positive definite; None if absent."""
+        table = dict((config or self.scenario_config()).filter)
+        if "initial_covariance" not in table:
+            return None
+        try:
+            P0 = np.asarray(table["initial_covariance"], dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError("filter.initial_covariance must be a 10 x 10 matrix of "
+                              "numbers") from None
+        if P0.shape != (STATE_COUNT, STATE_COUNT) or not np.all(np.isfinite(P0)):
+            raise ConfigError(f"filter.initial_covariance must be a finite 10 x 10 matrix, "
+                              f"got shape {P0.shape}")
+        if not np.allclose(P0, P0.T, rtol=1e-12, atol=0.0):
+            raise ConfigError("filter.initial_covariance must be symmetric")
+        smallest = float(np.linalg.eigvalsh(P0).min())
+        if smallest <= 0.0:
+            raise ConfigError("filter.initial_covariance is not positive definite (smallest "
+                              f"eigenvalue {smallest:.3g}); it must be symmetric positive "
+                              "definite, SI units")
+        return P0
+
+    def check(self, config):
+        self.tuning(config)
+        self.initial_covariance(config)
 
     def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
                         ) -> "Paper002Episode":
@@ -77,7 +116,9 @@ class Paper002Experiment(Experiment):
         start_error = np.broadcast_to(np.asarray(start_error, dtype=float),
                                       (len(episodes), 3))
         inputs = [e.ins_for(s, self.filter_step) for e, s in zip(episodes, start_error)]
-        return EulerLargeMisalignmentModel(stack_ins_inputs(inputs), self.tuning())
+        config = self.scenario_config()
+        return EulerLargeMisalignmentModel(stack_ins_inputs(inputs), self.tuning(config),
+                                           P0=self.initial_covariance(config))
 
     def attitude_sigma(self):
         return np.asarray(self.tuning().euler_sigma)

@@ -54,6 +54,7 @@ class Paper003Experiment(Experiment):
     heading_threshold_arcmin: float = 5.0
 
     paper = "003"
+    worlds = ("ship-prescribed", "ship-waves")
     default_filters = ("kf", "sakf", "makf", "imakf")
     starts = STARTS
 

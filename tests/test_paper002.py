@@ -134,3 +134,33 @@ def test_paper003_numbers_unchanged_by_the_framework():
         np.testing.assert_allclose(r.result.factors.sum(axis=(1, 2)), stored["factors_sum"],
                                    rtol=1e-9)
         np.testing.assert_allclose(r.nees[:, -1], stored["nees_final"], rtol=1e-9)
+
+
+def scenario_with_filter_table(tmp_path, table):
+    text = (Path(__file__).parents[1] / "scenarios" / "data" /
+            "static-large-azimuth.toml").read_text()
+    path = tmp_path / "custom.toml"
+    path.write_text(text + "\n[filter]\n" + table + "\n")
+    return str(path)
+
+
+def test_non_positive_definite_initial_covariance_in_a_scenario_file(tmp_path, capsys):
+    P0 = np.diag([0.1] * 10)
+    P0[0, 1] = P0[1, 0] = 0.5  # |correlation| > 1: indefinite
+    rows = ", ".join("[" + ", ".join(f"{v:g}" for v in row) + "]" for row in P0)
+    path = scenario_with_filter_table(tmp_path, f"initial_covariance = [{rows}]")
+    assert main(["bench", "paper002", "--scenario", path, "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "filter.initial_covariance is not positive definite" in err[0]
+
+
+def test_scenario_filter_table_is_used_and_checked(tmp_path, capsys):
+    path = scenario_with_filter_table(tmp_path, "euler_sigma_deg = [10.0, 10.0, 80.0]")
+    exp = experiment("paper002", scenario=path)
+    np.testing.assert_allclose(np.rad2deg(exp.tuning().euler_sigma), [10, 10, 80])
+    bad = scenario_with_filter_table(tmp_path, "euler_sigma_deg = [10.0, -1.0, 80.0]")
+    assert main(["bench", "paper002", "--scenario", bad, "--episodes", "1"]) == 2
+    assert "filter.euler_sigma_deg must be 3 values in (0, 90] deg" in capsys.readouterr().err
+    assert main(["bench", "paper003", "--scenario", path, "--episodes", "1"]) == 2
+    assert "paper003 runs on the ship-prescribed or ship-waves world" in \
+        capsys.readouterr().err
