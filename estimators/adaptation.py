@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-AXES = ("measurement", "local-level")
+FACTOR_AXES = ("measurement", "local-level")
 """Axes along which per-axis factors are formed: the measurement's own (the papers), or
 local East, North, Up (the observation's ``axes`` rotation)."""
 
@@ -116,21 +116,30 @@ class InnovationFading(AdaptationPolicy):
 
     def reset(self, batch: int) -> None:
         self._C = None
+        self._started = np.zeros(batch, bool)
 
     def innovation_covariance(self, innovation: np.ndarray,
                               valid: np.ndarray | None = None) -> np.ndarray:
         """Update and return C_k (B, m, m) from the innovation e_k (B, m). An episode with
-        a missing component (valid (B, m) False) keeps its C_{k-1}; a change of m restarts
-        the estimate."""
+        a missing component (valid (B, m) False) keeps its C_{k-1}; its first complete
+        innovation starts it (C = e e^T); a change of m restarts the estimate."""
         outer = innovation[..., :, None] * innovation[..., None, :]
+        complete = (np.ones(outer.shape[0], bool) if valid is None else valid.all(-1))
         if self._C is None or self._C.shape != outer.shape:
-            new = outer
-        else:
-            new = (self.rho * self._C + outer) / (1.0 + self.rho)
-        if valid is not None and self._C is not None and self._C.shape == outer.shape:
-            new = np.where(valid.all(-1)[:, None, None], new, self._C)
-        self._C = new
+            self._C = np.zeros_like(outer)
+            self._started = np.zeros(outer.shape[0], bool)
+        recursive = (self.rho * self._C + outer) / (1.0 + self.rho)
+        new = np.where(self._started[:, None, None], recursive, outer)
+        self._C = np.where(complete[:, None, None], new, self._C)
+        self._started = self._started | complete
         return self._C
+
+    def retune(self, floor: float) -> None:
+        """An agent's action: a new lower bound of the factors (> 0; the cap is raised to
+        it if needed)."""
+        if not (np.isfinite(floor) and floor > 0.0):
+            raise ValueError(f"fading-factor floor must be > 0, got {floor}")
+        self.floor, self.cap = floor, max(self.cap, floor)
 
     def _bound(self, factors: np.ndarray) -> np.ndarray:
         factors = np.where(np.isfinite(factors), factors, self.floor)
@@ -171,8 +180,8 @@ class _PerAxisFading(InnovationFading):
     def __init__(self, rho: float = 0.95, floor: float = 1.0, cap: float = np.inf,
                  axes: str = "measurement") -> None:
         super().__init__(rho, floor, cap)
-        if axes not in AXES:
-            raise ValueError(f"axes = {axes!r}; valid: " + ", ".join(AXES))
+        if axes not in FACTOR_AXES:
+            raise ValueError(f"axes = {axes!r}; valid: " + ", ".join(FACTOR_AXES))
         self.axes = axes
 
     def _factors(self, N: np.ndarray, J: np.ndarray, ctx: AdaptationContext

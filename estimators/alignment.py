@@ -78,9 +78,15 @@ class AlignmentRun:
         k, filt, model = self.k, self.filt, self.model
         filt.predict(model.transition(k, q_scale))
         filt.update(model.observation(k, r_scale))
+        width = filt.factors.shape[-1]
         if self.factors is None:
-            self.factors = np.zeros((self.batch, self.epochs, filt.factors.shape[-1]))
-        self.factors[:, k] = filt.factors
+            self.factors = np.zeros((self.batch, self.epochs, width))
+        elif width > self.factors.shape[-1]:  # m grew: widen, NaN where not formed
+            grown = np.full((self.batch, self.epochs, width), np.nan)
+            grown[..., : self.factors.shape[-1]] = self.factors
+            self.factors = grown
+        self.factors[:, k] = np.nan
+        self.factors[:, k, :width] = filt.factors
         self.x[:, k + 1] = filt.x
         filt.x, filt.P = model.feedback(filt.x, filt.P, filt.live)
         self.k += 1

@@ -464,3 +464,14 @@ class EulerLargeMisalignmentModel(FilterModel):
     def attitude_sigma(self, k, P):
         """1-sigma of the Euler errors alpha_E, alpha_N, alpha_U (B, 3), rad."""
         return np.sqrt(np.maximum(np.diagonal(P[:, ALPHA, ALPHA], axis1=-2, axis2=-1), 0.0))
+
+
+class SmallAngleModel(EulerLargeMisalignmentModel):
+    """The same states, noise and measurement with the process linearised once at
+    alpha = 0 (Phi = the RK4 Jacobian at zero): the classic small-angle linear model, the
+    contrast that fails from a large azimuth error."""
+
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        noise = super().transition(k, q_scale).noise
+        Phi = rk4_jacobian(np.zeros((self.batch, N_STATES)), self.T, *self._args(k))
+        return Transition(noise=noise, matrix=Phi)

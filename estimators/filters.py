@@ -16,7 +16,7 @@ from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                    ImprovedMultipleFadingFactors, InnovationFading,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
 from estimators.model import Observation, Transition, wrap_angle
-from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule,
+from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
                               LinearizationRule, ReducedGaussHermiteRule,
                               SparseGridGaussHermiteRule, UnscentedRule)
 
@@ -65,6 +65,16 @@ def _floor_eigenvalues(P: np.ndarray, relative: float = 1e-12) -> np.ndarray:
     return (vecs * vals[:, None, :]) @ np.swapaxes(vecs, -1, -2)
 
 
+def _innovation(observation: Observation, z: np.ndarray, z_hat: np.ndarray,
+                valid: np.ndarray) -> np.ndarray:
+    """z - z_hat (B, m), angle components wrapped, zero where the measurement is missing."""
+    innovation = z - z_hat
+    if observation.angles:
+        idx = list(observation.angles)
+        innovation[:, idx] = wrap_angle(innovation[:, idx])
+    return np.where(valid, innovation, 0.0)
+
+
 class GaussianFilter:
     """Kalman-type filter with a pluggable integration rule and adaptation policy.
 
@@ -89,7 +99,7 @@ class GaussianFilter:
         """Start B episodes from x0 (B, n), P0 (B, n, n); angles: indices of angle states
         (wrapped to (-pi, pi])."""
         self.x = np.array(x0, dtype=float)
-        self.P = 0.5 * (P0 + np.swapaxes(P0, -1, -2))
+        self.P = symmetric(P0)
         self.angles = tuple(angles)
         batch = self.x.shape[0]
         self.health = FilterHealth.healthy(batch)
@@ -128,19 +138,14 @@ class GaussianFilter:
         valid = observation.valid() & live[:, None]
         z = np.where(valid, observation.z, 0.0)
         R = observation.noise
-        P_pred = PhiPPhi + Q
-        P_pred = 0.5 * (P_pred + np.swapaxes(P_pred, -1, -2))
+        P_pred = symmetric(PhiPPhi + Q)
         P_pred = self._repair(P_pred, t)
         z_hat, P_zz, P_xz = self.rule.moments(observation, self.x, P_pred)
-        innovation = z - z_hat
-        if observation.angles:
-            idx = list(observation.angles)
-            innovation[:, idx] = wrap_angle(innovation[:, idx])
-        innovation = np.where(valid, innovation, 0.0)
+        innovation = _innovation(observation, z, z_hat, valid)
         if observation.linear:
             H = observation.matrix
-        else:  # statistical linearisation, for the policies
-            H = np.swapaxes(np.linalg.solve(P_pred, P_xz), -1, -2)
+        else:  # statistical linearisation P_xz^T P_pred^-1, for the policies
+            H = np.swapaxes(np.linalg.pinv(P_pred, hermitian=True) @ P_xz, -1, -2)
         ctx = AdaptationContext(innovation=innovation, valid=valid, S=P_zz + R, P_xz=P_xz,
                                 PhiPPhi=PhiPPhi, Q=Q, R=R, H=H, axes=observation.axes,
                                 motion=observation.motion, t=t)
@@ -150,14 +155,11 @@ class GaussianFilter:
             R = np.where(silent, R, adjustment.R)
         if adjustment.P_pred is not None:
             adapted = np.where(silent, P_pred, adjustment.P_pred)
-            P_pred = 0.5 * (adapted + np.swapaxes(adapted, -1, -2))
+            P_pred = symmetric(adapted)
             P_pred = self._repair(P_pred, t)
             if not observation.linear:  # re-update with the adapted prediction
                 z_hat, P_zz, P_xz = self.rule.moments(observation, self.x, P_pred)
-                innovation = z - z_hat
-                if observation.angles:
-                    innovation[:, idx] = wrap_angle(innovation[:, idx])
-                innovation = np.where(valid, innovation, 0.0)
+                innovation = _innovation(observation, z, z_hat, valid)
         # Missing components: zero rows of H / columns of P_xz, unit diagonal in S and
         # R, so that their gain columns are exactly zero.
         missing = ~valid
@@ -192,7 +194,7 @@ class GaussianFilter:
             P_new = I_KH @ P_pred @ np.swapaxes(I_KH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
         else:
             P_new = P_pred - K @ S @ np.swapaxes(K, -1, -2)
-        P_new = 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+        P_new = symmetric(P_new)
         P_ok = _cholesky_ok(P_new) & np.all(np.isfinite(x_new), axis=-1)
         self.health.flag(~P_ok & live, t, "covariance not positive definite or state NaN")
         live &= P_ok
@@ -202,8 +204,12 @@ class GaussianFilter:
         self.factors = adjustment.factors
 
     def _repair(self, P_pred: np.ndarray, t: float) -> np.ndarray:
-        """Floor the eigenvalues of a predicted covariance that is not positive definite
-        (negative-weight rules), counting each repair; a non-finite one is flagged."""
+        """Floor the eigenvalues of a predicted covariance that a rule with negative
+        weights left indefinite (ALGORITHMS 3.2 caution 1), counting each repair; a
+        non-finite one is flagged. Other rules' covariances are left to the checks of
+        the update, which flag them."""
+        if not self.rule.has_negative_weights:
+            return P_pred
         ok = _cholesky_ok(P_pred)
         live = self.live
         bad = ~ok & live

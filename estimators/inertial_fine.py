@@ -139,6 +139,7 @@ class InertialFineModel(FilterModel):
         self._H = np.broadcast_to(np.hstack([np.eye(3), np.zeros((3, 9))]), (B, 3, N_STATES))
         self._R_n = np.diag(np.square(tuning.measurement_sigma))
         self._Z_acc = np.zeros((B, 3))
+        self._Z_epoch = -1
 
     def initial(self):
         return (np.zeros((self.batch, N_STATES)),
@@ -165,7 +166,13 @@ class InertialFineModel(FilterModel):
         return Transition(noise=Q, matrix=Phi)
 
     def observation(self, k, r_scale=1.0):
-        self._Z_acc += np.einsum("bij,bj->bi", self.C_s0_i, self.inputs.dW[:, k])
+        if self._Z_epoch != k:  # accumulate the specific-force integral once per epoch
+            if k != self._Z_epoch + 1:
+                raise ValueError(f"observation({k}) after observation({self._Z_epoch}): "
+                                 "epochs must be taken in order")
+            self._Z_acc = self._Z_acc + np.einsum("bij,bj->bi", self.C_s0_i,
+                                                  self.inputs.dW[:, k])
+            self._Z_epoch = k
         z = self._Z_acc - (self._V_grav[:, k + 1] - self._V_grav[:, 0])
         R = r_scale * self._C_n_i[:, k + 1] @ self._R_n @ self._C_i_n[:, k + 1]
         return Observation(noise=R, matrix=self._H, z=z, t=float(self.inputs.t[k + 1]),

@@ -71,8 +71,9 @@ class GaussianMap:
     angles: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
-        if self.matrix is None and self.fn is None:
-            raise ValueError("a GaussianMap needs a matrix (linear) or a function")
+        if (self.matrix is None) == (self.fn is None):
+            raise ValueError("a GaussianMap needs either a matrix (linear) or a function, "
+                             "not both")
 
     @property
     def linear(self) -> bool:

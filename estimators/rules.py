@@ -25,13 +25,15 @@ import numpy as np
 
 from estimators.model import GaussianMap, wrap_angle
 
-MAX_POINTS = 2_000_000
+MAX_POINTS = 200_000
+"""Largest tensor-product grid per episode (memory: points x episodes x n x 8 bytes)."""
 
 
 Moments = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _symmetric(A: np.ndarray) -> np.ndarray:
+def symmetric(A: np.ndarray) -> np.ndarray:
+    """(A + A^T) / 2 over the last two axes."""
     return 0.5 * (A + np.swapaxes(A, -1, -2))
 
 
@@ -51,7 +53,7 @@ class IntegrationRule(ABC):
     def moments(self, fmap: GaussianMap, mean: np.ndarray, cov: np.ndarray) -> Moments:
         """E[y] (B, d), Cov[y] (B, d, d) without the map's noise, Cov[x, y] (B, n, d) for
         y = fmap(x), x ~ N(mean (B, n), cov (B, n, n))."""
-        if fmap.linear and fmap.fn is None:
+        if fmap.linear:
             return _linear_moments(fmap, mean, cov)
         return self._moments(fmap, mean, cov)
 
@@ -143,17 +145,24 @@ def weighted_moments(y: np.ndarray, dx: np.ndarray, wm: np.ndarray, wc: np.ndarr
     d_w = np.swapaxes(d * wc[:, None], -1, -2)         # (B, d, P)
     cov = d_w @ d
     cross = np.swapaxes(d_w @ dx, -1, -2)
-    return mean, _symmetric(cov), cross
+    return mean, symmetric(cov), cross
 
 
 def _sqrt_psd(P: np.ndarray) -> np.ndarray:
-    """Lower Cholesky factor; episodes whose P is not positive definite (the filter has
-    flagged them) get the symmetric square root of the eigenvalue-floored matrix."""
+    """Lower Cholesky factor (B, n, n); an episode whose P is not positive definite (the
+    filter has flagged it) gets the symmetric square root of its eigenvalue-floored
+    matrix, without changing the other episodes' factors."""
     try:
         return np.linalg.cholesky(P)
     except np.linalg.LinAlgError:
-        vals, vecs = np.linalg.eigh(P)
-        return vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]
+        S = np.empty_like(P)
+        for b in range(P.shape[0]):
+            try:
+                S[b] = np.linalg.cholesky(P[b])
+            except np.linalg.LinAlgError:
+                vals, vecs = np.linalg.eigh(np.where(np.isfinite(P[b]), P[b], 0.0))
+                S[b] = vecs * np.sqrt(np.maximum(vals, 0.0))
+        return S
 
 
 class UnscentedRule(SigmaPointRule):
@@ -197,6 +206,9 @@ class GaussHermiteRule(SigmaPointRule):
     def __init__(self, order: int = 3):
         self.order = order
         self.name = f"gauss-hermite({order})"
+
+    def point_count(self, n: int) -> int:
+        return self.order ** n
 
     def _points(self, n):
         count = self.order ** n
@@ -303,7 +315,8 @@ class ReducedGaussHermiteRule(IntegrationRule):
         F_Sigma = F @ Sigma_c[:, None]                          # (B, P, d, n)
         cov_y = cov_y + np.einsum("k,bkij,bklj->bil", W, F_Sigma, F)
         cross = cross + np.einsum("k,bkij->bji", W, F_Sigma)
-        return y_mean, _symmetric(cov_y), cross
+        return y_mean, symmetric(cov_y), cross
 
-    def point_count(self, n: int) -> int:
-        return self.order
+    def point_count(self, n: int, nonlinear: int = 1) -> int:
+        """order ** (number of nonlinear states) points; the rest is exact."""
+        return self.order ** nonlinear

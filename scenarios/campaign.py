@@ -23,24 +23,32 @@ from estimators.alignment import FineResult, run_alignment
 from estimators.filters import UnknownFilter, filter_entry, make_filter
 from estimators.metrics import DivergenceRule, convergence_time, euler_error, misalignment
 from estimators.model import FilterModel, StateLayout
+from estimators.rules import MAX_POINTS
 from models.units import arcmin
 from scenarios.config import ConfigError, ScenarioConfig, load_scenario
 
 AXES = ("phi_E", "phi_N", "phi_U")
 
 
+@dataclass
 class PreparedEpisode(ABC):
     """What the filters need of one episode and its truth at the filter epochs.
 
     Every prepared episode has: seed; C_s_n_true, C_b_n_true, C_s_b (K+1, 3, 3) at the
     epoch boundaries (truth IMU and body attitude, the gimbal as the encoders read it);
-    lat (rad) and h (m), the known position. It saves itself as one .npz, atomically.
+    gyro_bias (3,) rad/s and accel_bias (3,) m/s^2, the drawn constant sensor errors;
+    lat (rad) and h (m), the known position. Experiments add their own fields. It saves
+    itself as one .npz, atomically.
     """
 
     seed: int
     C_s_n_true: np.ndarray
     C_b_n_true: np.ndarray
     C_s_b: np.ndarray
+    gyro_bias: np.ndarray
+    accel_bias: np.ndarray
+    lat: float
+    h: float
 
     @abstractmethod
     def arrays(self) -> dict[str, np.ndarray]:
@@ -146,13 +154,22 @@ class Experiment(ABC):
         """One-line ConfigError for settings of the scenario the experiment cannot use
         (called before any episode is simulated)."""
 
+    state_count: int = 0
+    """Dimension of the experiment's fine-alignment state."""
+
     def check_filters(self, filters: list[str]) -> None:
-        """One-line ConfigError for an unknown filter."""
+        """One-line ConfigError for an unknown filter, or one whose rule needs more points
+        than ``rules.MAX_POINTS`` for this model's dimension."""
         for name in filters:
             try:
-                filter_entry(name)
+                rule = filter_entry(name).rule()
             except UnknownFilter as exc:
                 raise ConfigError(str(exc)) from None
+            count = rule.point_count(self.state_count)
+            if count > MAX_POINTS:
+                raise ConfigError(f"filter {name!r} needs {count:.3g} points per episode for "
+                                  f"the {self.state_count}-state model of paper{self.paper} "
+                                  f"(at most {MAX_POINTS}); use a sparse grid (sghkf-L)")
 
 
 def episode_seeds(seed: int, episodes: int) -> list[int]:
@@ -255,16 +272,19 @@ def fine_summary(result: CampaignResult, window: float | None = None) -> dict:
     return out
 
 
-def format_fine_table(result: CampaignResult, start: str, title: str | None = None) -> str:
-    """Final error per filter (mean, std, RMS per axis, arcmin) from one start."""
+def format_fine_table(result: CampaignResult, start: str, title: str | None = None,
+                      extra: dict[str, str] | None = None, extra_header: str = "") -> str:
+    """Final error per filter (mean, std, RMS per axis, arcmin) from one start; extra:
+    per filter, text appended to its first row under extra_header."""
     fine = fine_summary(result)
     lines = [title or f"Fine alignment from the {start} start: final error (arcmin)",
              f"{'filter':9s}{'stat':6s}" + "".join(f"{a:>12s}" for a in AXES)
-             + f"{'diverged':>10s}"]
+             + f"{'diverged':>10s}" + extra_header]
     for name, per_start in fine.items():
         s = per_start[start]
         for stat in ("mean", "std", "rms"):
-            tail = f"{s['diverged_fraction']:10.0%}" if stat == "mean" else ""
+            tail = (f"{s['diverged_fraction']:10.0%}" + (extra or {}).get(name, "")
+                    if stat == "mean" else "")
             lines.append(f"{name if stat == 'mean' else '':9s}{stat:6s}"
                          + "".join(f"{v:12.4f}" for v in s[f"{stat}_arcmin"]) + tail)
     return "\n".join(lines)

@@ -1,12 +1,15 @@
-"""Gymnasium interface: one episode is one alignment run (coarse, then fine); each step
-is one filter epoch. The observation holds only what the filter knows; the action
-rescales the filter's noise tuning; the reward and ``info`` use the truth.
+"""Gymnasium interface, built from the scenario's experiment (``scenarios.experiments``):
+one episode is one alignment run (the coarse stage, if the experiment has one, then the
+fine alignment); each step is one filter epoch. The observation holds only what the
+filter knows; the action rescales the filter's noise tuning; the reward and ``info`` use
+the truth.
 
-Observation (float32, 16): normalised innovations e_i / sqrt(S_ii) (3, clipped to
+Observation (float32, 16): normalised innovations e_i / sqrt(S_ii) (up to 3, clipped to
 +-10); log10 of the attitude and bias covariance diagonal relative to its initial value
-(9: phi, gyro drift, accelerometer bias; clipped to [-20, 5]); log10 of the current
-fading factors (3, zero where the filter has fewer; clipped to [-2, 3]); elapsed
-fraction of the fine alignment (1).
+(up to 9: the experiment's attitude, gyro-drift and accelerometer-bias states, 003: 9,
+002: 8; clipped to [-20, 5]); log10 of the current fading factors (3, zero where the
+filter has fewer; clipped to [-2, 3]); elapsed fraction of the fine alignment (1).
+Unused entries are zero.
 
 Action (float32 in [-1, 1]): log-scale multipliers 10^(2 a) on the variances of the
 gyro white noise, the accelerometer white noise and the measurement noise, and, for
@@ -150,9 +153,7 @@ class AlignmentEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
         if self._fading:
-            self._filter.adaptation.floor = 10.0 ** a[3]
-            self._filter.adaptation.cap = max(self._filter.adaptation.cap,
-                                              self._filter.adaptation.floor)
+            self._filter.adaptation.retune(floor=10.0 ** a[3])
         run = self._run
         mis = self._mistuning
         run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * a[0]),

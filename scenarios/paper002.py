@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.euler_large import (PAPER002, EulerLargeMisalignmentModel, Paper002Tuning,
+from estimators.euler_large import (LAYOUT, PAPER002, EulerLargeMisalignmentModel,
+                                    Paper002Tuning,
                                     StaticInsInputs, C_p_n, stack_ins_inputs,
                                     static_base_ins, true_state)
 from estimators.filters import make_filter
@@ -23,8 +24,8 @@ from estimators.metrics import nees
 from estimators.model import wrap_angle
 from models.attitude import quat_to_dcm
 from models.units import arcmin, deg, deg_per_h
-from scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
-                                fine_summary)
+from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode,
+                                fine_summary, format_fine_table)
 from scenarios.config import ConfigError, ScenarioConfig
 from scenarios.simulate import simulate
 
@@ -54,6 +55,7 @@ class Paper002Experiment(Experiment):
     paper = "002"
     worlds = ("static-platform",)
     filter_keys = ("euler_sigma", "initial_covariance")
+    state_count = STATE_COUNT
     default_filters = ("ekf", "ukf", "sghkf-2", "sghkf-4")
     starts = (START,)
 
@@ -121,7 +123,11 @@ class Paper002Experiment(Experiment):
                                            P0=self.initial_covariance(config))
 
     def attitude_sigma(self):
-        return np.asarray(self.tuning().euler_sigma)
+        """Euler-error sigmas of a random start (the env's): the experiment's level sigma
+        (P0's 45 deg would put 5 % of the starts beyond the 90 deg singularity of the
+        Euler rates) and P0's heading sigma."""
+        level = self.level_error_sigma_deg * deg
+        return np.array([level, level, self.tuning().euler_sigma[2]])
 
     def observed_states(self, layout):
         return layout.indices("euler_error", "gyro_bias", "accel_bias")
@@ -133,10 +139,12 @@ class Paper002Experiment(Experiment):
         C_true = np.stack([e.C_b_n_true[:K] for e in episodes])
         alpha = true_state(C_true, C_b_p)
         err = np.concatenate([
-            wrap_angle(alpha - result.x[:, :, 0:3]),
-            np.stack([e.accel_bias[:2] for e in episodes])[:, None] - result.x[:, :, 5:7],
-            np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, 7:10]], -1)
-        sub = np.r_[0:3, 5:10]
+            wrap_angle(alpha - result.x[:, :, LAYOUT["euler_error"]]),
+            np.stack([e.accel_bias[:2] for e in episodes])[:, None]
+            - result.x[:, :, LAYOUT["accel_bias"]],
+            np.stack([e.gyro_bias for e in episodes])[:, None]
+            - result.x[:, :, LAYOUT["gyro_bias"]]], -1)
+        sub = LAYOUT.indices("euler_error", "accel_bias", "gyro_bias")
         return nees(err, result.P[:, :, sub][:, :, :, sub])
 
     def summary(self, result):
@@ -148,22 +156,13 @@ class Paper002Experiment(Experiment):
 
 @dataclass
 class Paper002Episode(PreparedEpisode):
-    """One static-base episode: the open-loop INS from its starting Euler error, and the
-    truth. start_error (3,) rad: Euler error [alpha_E, alpha_N, alpha_U] of the INS's
-    initial attitude; ins: the INS at the filter epochs (batch of one); gyro_bias (3,)
-    rad/s, accel_bias (3,) m/s^2: the drawn constant errors. The IMU increments are kept
-    in memory (not saved) so that the env can restart the INS from another error."""
+    """One static-base episode (``PreparedEpisode``; C_s_b = I): start_error (3,) rad,
+    the Euler error [alpha_E, alpha_N, alpha_U] of the INS's initial attitude; ins, the
+    open-loop INS at the filter epochs (batch of one). The IMU increments are kept in
+    memory (not saved) so that the env can restart the INS from another error."""
 
-    seed: int
     start_error: np.ndarray
     ins: StaticInsInputs
-    C_s_n_true: np.ndarray
-    C_b_n_true: np.ndarray
-    C_s_b: np.ndarray
-    gyro_bias: np.ndarray
-    accel_bias: np.ndarray
-    lat: float
-    h: float
     increments: tuple[np.ndarray, np.ndarray, float] | None = None
 
     def C_b_p_at(self, K: int) -> np.ndarray:
@@ -233,8 +232,8 @@ def point_count(name: str) -> int:
 
 
 def paper002_summary(result: CampaignResult) -> dict:
-    """{"fine": {FILTER: {mean/std/rms_arcmin [3], diverged_fraction, convergence_s,
-    points, us_per_epoch}}}: final errors after the fine duration."""
+    """{FILTER: {mean/std/rms_arcmin [3], diverged_fraction, convergence_s, points,
+    us_per_epoch}} (the JSON's "fine" entry): final errors after the fine duration."""
     fine = fine_summary(result)
     out = {}
     for run in result.runs:
@@ -251,16 +250,11 @@ def format_tables(result: CampaignResult) -> str:
     """The paper-shaped table: steady errors per filter, convergence and cost."""
     exp = result.experiment
     summary = paper002_summary(result)
-    lines = [f"Static base, {exp.azimuth_error_deg:g} deg azimuth error, "
-             f"{exp.fine_duration:g} s, {len(result.seeds)} runs: final error (arcmin)",
-             f"{'filter':9s}{'stat':6s}" + "".join(f"{a:>11s}" for a in AXES)
-             + f"{'diverged':>10s}{'conv (s)':>10s}{'points':>8s}{'us/epoch':>10s}"]
-    for name, s in summary.items():
-        for stat in ("mean", "std", "rms"):
-            tail = (f"{s['diverged_fraction']:10.0%}{s['convergence_s']:10.1f}"
-                    f"{s['points']:8d}{s['us_per_epoch']:10.1f}") if stat == "mean" else ""
-            lines.append(f"{name if stat == 'mean' else '':9s}{stat:6s}"
-                         + "".join(f"{v:11.3f}" for v in s[f"{stat}_arcmin"]) + tail)
-    lines.append(f"(heading convergence: error within {exp.heading_threshold_arcmin:g}' "
-                 "from then on; us/epoch per episode, batched)")
-    return "\n".join(lines)
+    title = (f"Static base, {exp.azimuth_error_deg:g} deg azimuth error, "
+             f"{exp.fine_duration:g} s, {len(result.seeds)} runs: final error (arcmin)")
+    extra = {name: f"{s['convergence_s']:10.1f}{s['points']:8d}{s['us_per_epoch']:10.1f}"
+             for name, s in summary.items()}
+    return (format_fine_table(result, START, title, extra,
+                              f"{'conv (s)':>10s}{'points':>8s}{'us/epoch':>10s}")
+            + f"\n(heading convergence: error within {exp.heading_threshold_arcmin:g}' "
+            "from then on; us/epoch per episode, batched)")

@@ -55,6 +55,7 @@ class Paper003Experiment(Experiment):
 
     paper = "003"
     worlds = ("ship-prescribed", "ship-waves")
+    state_count = 12
     default_filters = ("kf", "sakf", "makf", "imakf")
     starts = STARTS
 
@@ -122,31 +123,18 @@ class Paper003Experiment(Experiment):
 
 @dataclass
 class Paper003Episode(PreparedEpisode):
-    """What the filters need of one episode, plus its truth at the filter steps.
+    """One ship episode (``PreparedEpisode``; C_s_b from the gimbal encoders), with
+    coarse_error (3,) rad, phi E, N, U of the coarse alignment at t_k2, and inputs, the
+    shared fine-alignment integrals (batch of one)."""
 
-    coarse_error: (3,) rad, phi E, N, U of the coarse alignment at t_k2.
-    inputs: the shared fine-alignment integrals (batch of one).
-    C_s_n_true, C_b_n_true: (K+1, 3, 3) at the filter steps; C_s_b: (K+1, 3, 3)
-    from the encoder readings; gyro_bias (3,) rad/s, accel_bias (3,) m/s^2: the drawn
-    constant errors; lat (rad), h (m): the known position.
-    """
-
-    seed: int
     coarse_error: np.ndarray
     inputs: FineInputs
-    C_s_n_true: np.ndarray
-    C_b_n_true: np.ndarray
-    C_s_b: np.ndarray
-    gyro_bias: np.ndarray
-    accel_bias: np.ndarray
-    lat: float
-    h: float
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {"seed": self.seed, "coarse_error": self.coarse_error, "t": self.inputs.t,
-                  "C_s_s0": self.inputs.C_s_s0[0], "dW": self.inputs.dW[0],
-                  "Psi": self.inputs.Psi[0], "Psi2": self.inputs.Psi2[0],
-                  "C_s_n_true": self.C_s_n_true, "C_b_n_true": self.C_b_n_true,
+                "C_s_s0": self.inputs.C_s_s0[0], "dW": self.inputs.dW[0],
+                "Psi": self.inputs.Psi[0], "Psi2": self.inputs.Psi2[0],
+                "C_s_n_true": self.C_s_n_true, "C_b_n_true": self.C_b_n_true,
                 "C_s_b_encoder": self.C_s_b, "gyro_bias": self.gyro_bias,
                 "accel_bias": self.accel_bias, "lat": self.lat, "h": self.h}
 

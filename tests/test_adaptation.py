@@ -121,16 +121,23 @@ def test_multiple_factors_reject_a_general_H():
 
 
 def test_missing_measurement_keeps_the_innovation_statistics():
-    """An episode whose measurement is missing keeps C_{k-1}; the others update it."""
+    """An episode whose measurement is missing keeps C_{k-1} (its factor does not move);
+    an episode whose first measurement is missing starts C at its first one (C = e e^T,
+    not e e^T / (1 + rho))."""
+    PP2, Q2, H2, R2 = (np.repeat(a, 2, axis=0) for a in (PhiPPhi, Q, H, R))
+
+    def step(policy, e, valid):
+        ctx = AdaptationContext(innovation=np.where(valid, e, 0.0), valid=valid, S=R2,
+                                P_xz=np.zeros((2, 2, 1)), PhiPPhi=PP2, Q=Q2, R=R2, H=H2)
+        return policy.adapt(ctx).factors[:, 0]
+
     policy = SingleFadingFactor()
-    e1 = np.array([[3.0], [3.0]])
-    two = (np.repeat(a, 2, axis=0) for a in (PhiPPhi, Q, H, R))
-    PP2, Q2, H2, R2 = two
-    adapt(policy, PP2, Q2, H2, R2, e1)
-    C1 = policy._C.copy()
-    valid = np.array([[True], [False]])
-    ctx = AdaptationContext(innovation=np.array([[1.0], [0.0]]), valid=valid, S=R2,
-                            P_xz=np.zeros((2, 2, 1)), PhiPPhi=PP2, Q=Q2, R=R2, H=H2)
-    policy.adapt(ctx)
-    assert policy._C[1, 0, 0] == C1[1, 0, 0]
-    assert policy._C[0, 0, 0] == pytest.approx((0.95 * 9.0 + 1.0) / 1.95)
+    policy.reset(2)
+    first = step(policy, np.array([[3.0], [3.0]]), np.array([[True], [False]]))
+    assert first[0] == pytest.approx(4.2)          # (9 - 0.1 - 0.5) / 2
+    second = step(policy, np.array([[1.0], [3.0]]), np.array([[False], [True]]))
+    assert second[0] == pytest.approx(first[0])    # kept C_1 = 9
+    assert second[1] == pytest.approx(4.2)         # started at e e^T = 9
+    third = step(policy, np.array([[1.0], [1.0]]), np.array([[True], [True]]))
+    C2 = (0.95 * 9.0 + 1.0) / 1.95
+    np.testing.assert_allclose(third, (C2 - 0.6) / 2.0)

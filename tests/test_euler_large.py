@@ -5,12 +5,11 @@ import pytest
 
 from estimators.alignment import run_alignment
 from estimators.euler_large import (EulerLargeMisalignmentModel, Paper002Tuning, C_omega,
-                                    C_omega_inv, C_p_n, continuous_dynamics,
-                                    continuous_jacobian, rk4_jacobian, rk4_step,
-                                    small_angle_dynamics, stack_ins_inputs,
+                                    C_omega_inv, C_p_n, SmallAngleModel,
+                                    continuous_dynamics, continuous_jacobian, rk4_jacobian,
+                                    rk4_step, small_angle_dynamics, stack_ins_inputs,
                                     state_vector, static_base_ins, true_state)
 from estimators.filters import make_filter
-from estimators.model import Transition
 from models.attitude import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
 from models.earth import OMEGA_IE, normal_gravity
 from models.units import arcmin, deg, deg_per_h, ug
@@ -170,15 +169,6 @@ def test_model_follows_the_ins_error_over_600_s():
     assert np.abs(true_state(C_BN, exact.C_b_p[0])).max() < 1e-12
 
 
-class _SmallAngleModel(EulerLargeMisalignmentModel):
-    """Contrast: a linear KF with the small-angle model linearised once at alpha = 0."""
-
-    def transition(self, k, q_scale=(1.0, 1.0)):
-        noise = super().transition(k, q_scale).noise
-        Phi = rk4_jacobian(np.zeros((self.batch, 10)), self.T, *self._args(k))
-        return Transition(noise=noise, matrix=Phi)
-
-
 def _heading_error(C_s_n):
     return np.abs(dcm_to_euler(C_s_n @ C_BN.T)[..., 2])
 
@@ -199,5 +189,5 @@ def test_filters_converge_from_58_5_deg_heading_error(rng):
         heading = _heading_error(result.C_s_n[:, -1])
         assert np.all(heading < 1 * deg), (name, heading / arcmin)
         assert np.allclose(_heading_error(result.C_s_n[:, 0]), 58.5 * deg, atol=0.01 * deg)
-    linear = run_alignment(make_filter("kf"), _SmallAngleModel(inputs, tuning))
+    linear = run_alignment(make_filter("kf"), SmallAngleModel(inputs, tuning))
     assert np.all(_heading_error(linear.C_s_n[:, -1]) > 5 * deg)

@@ -76,6 +76,34 @@ def test_partly_missing_measurement_uses_the_present_component():
     np.testing.assert_allclose(f.P, 2.0 * 0.5 / 2.5, rtol=1e-12)
 
 
+def test_missing_component_of_a_nonlinear_measurement_leaves_the_update():
+    """h(x) = [sin x0, x0 + x1] with one component missing per episode equals the
+    update with that component removed (sigma-point moments, masked gain)."""
+    x0 = np.array([[0.3, -0.2], [0.3, -0.2]])
+    P0 = np.broadcast_to(np.diag([0.1, 0.2]), (2, 2, 2)).copy()
+    R = np.broadcast_to(np.diag([0.01, 0.04]), (2, 2, 2)).copy()
+    both = Observation(noise=R, fn=lambda x: np.stack(
+        [np.sin(x[..., 0]), x[..., 0] + x[..., 1]], -1),
+        z=np.array([[0.25, np.nan], [np.nan, 0.1]]))
+    f = make_filter("ukf")
+    f.reset(x0, P0)
+    f.predict(Transition(noise=np.zeros((2, 2, 2)), matrix=np.broadcast_to(np.eye(2),
+                                                                           (2, 2, 2))))
+    f.update(both)
+    assert not f.health.diverged.any()
+    for b, (component, value) in enumerate(((0, 0.25), (1, 0.1))):
+        one = Observation(noise=R[b:b + 1, component:component + 1, component:component + 1],
+                          fn=lambda x, c=component: np.stack(
+                              [np.sin(x[..., 0]), x[..., 0] + x[..., 1]], -1)[..., c:c + 1],
+                          z=np.array([[value]]))
+        g = make_filter("ukf")
+        g.reset(x0[b:b + 1], P0[b:b + 1])
+        g.predict(Transition(noise=np.zeros((1, 2, 2)), matrix=np.eye(2)[None]))
+        g.update(one)
+        np.testing.assert_allclose(f.x[b], g.x[0], rtol=1e-12)
+        np.testing.assert_allclose(f.P[b], g.P[0], rtol=1e-12)
+
+
 def test_non_positive_definite_covariance_is_flagged_not_propagated():
     transition, observe = scalar_maps()
     R = np.full((3, 1, 1), 0.25)
