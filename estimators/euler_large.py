@@ -252,23 +252,44 @@ def continuous_dynamics(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
     """x_dot (..., 10) of ALGORITHMS (3.5) without noise, batched by broadcasting.
 
     x (..., 10); C_b_p (..., 3, 3); f_p (..., 3) m/s^2 in p; omega_ie (..., 3) rad/s in n.
+    alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie - C_b^p eps],
+    dv_dot = [(I - C_p^n) f^p + C_p^n C_b^p [nabla_x, nabla_y, 0]]_EN.
+    Written out per component on contiguous arrays (the sigma-point filters evaluate
+    it on 10^5 points per epoch); ``C_p_n`` and ``C_omega_inv`` are the matrix forms.
     """
-    alpha = x[..., ALPHA]
-    C = C_p_n(alpha)
-    Ct = np.swapaxes(C, -1, -2)
-    # ALGORITHMS (3.5): alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie - C_b^p eps].
-    w = omega_ie - _mv(Ct, omega_ie) - _mv(C_b_p, x[..., EPS])
-    out = np.zeros(np.broadcast_shapes(x.shape, f_p.shape[:-1] + (N_STATES,)))
-    # C_omega^-1 w written out (C_omega_inv): no 3x3 stack per point.
-    sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
-    sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
-    a = sN * w[..., 0] - cN * w[..., 2]
-    out[..., 0] = cN * w[..., 0] + sN * w[..., 2]
-    out[..., 1] = w[..., 1] + a * sE / cE
-    out[..., 2] = -a / cE
-    # dv_dot = [(I - C_p^n) f^p + C_p^n C_b^p [nabla_x, nabla_y, 0]]_EN.
-    b = C_b_p[..., :, 0] * x[..., 5:6] + C_b_p[..., :, 1] * x[..., 6:7]
-    out[..., DV] = (f_p - _mv(C, f_p - b))[..., :2]
+    return np.moveaxis(_dynamics(np.moveaxis(x, -1, 0), C_b_p, f_p, omega_ie), 0, -1)
+
+
+def _dynamics(xs: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
+              omega_ie: np.ndarray) -> np.ndarray:
+    """``continuous_dynamics`` on the state component-first: xs (10, ...) -> (10, ...)."""
+    shape = np.broadcast_shapes(xs.shape[1:], C_b_p.shape[:-2], f_p.shape[:-1],
+                                omega_ie.shape[:-1])
+    sE, cE = np.sin(xs[0]), np.cos(xs[0])
+    sN, cN = np.sin(xs[1]), np.cos(xs[1])
+    sU, cU = np.sin(xs[2]), np.cos(xs[2])
+    # C_p^n = Rz(alpha_U) Rx(alpha_E) Ry(alpha_N), ALGORITHMS (3.1).
+    sEsN, sEcN = sE * sN, sE * cN
+    c00, c01, c02 = cU * cN - sU * sEsN, -sU * cE, cU * sN + sU * sEcN
+    c10, c11, c12 = sU * cN + cU * sEsN, cU * cE, sU * sN - cU * sEcN
+    c20, c21, c22 = -cE * sN, sE, cE * cN
+    w = [omega_ie[..., i] for i in range(3)]
+    Cb = [[C_b_p[..., i, j] for j in range(3)] for i in range(3)]
+    eps = xs[7:10]
+    # w_i = omega_i - (C^T omega)_i - (C_b^p eps)_i.
+    ct_w = (c00 * w[0] + c10 * w[1] + c20 * w[2], c01 * w[0] + c11 * w[1] + c21 * w[2],
+            c02 * w[0] + c12 * w[1] + c22 * w[2])
+    r = [w[i] - ct_w[i] - (Cb[i][0] * eps[0] + Cb[i][1] * eps[1] + Cb[i][2] * eps[2])
+         for i in range(3)]
+    out = np.zeros((N_STATES,) + shape)
+    a = sN * r[0] - cN * r[2]                                  # C_omega^-1 r written out
+    out[0] = cN * r[0] + sN * r[2]
+    out[1] = r[1] + a * sE / cE
+    out[2] = -a / cE
+    f = [f_p[..., i] for i in range(3)]
+    d = [f[i] - (Cb[i][0] * xs[5] + Cb[i][1] * xs[6]) for i in range(3)]   # f - C_b^p nabla
+    out[3] = f[0] - (c00 * d[0] + c01 * d[1] + c02 * d[2])
+    out[4] = f[1] - (c10 * d[0] + c11 * d[1] + c12 * d[2])
     return out
 
 
@@ -307,12 +328,15 @@ def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def rk4_step(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
              omega_ie: np.ndarray) -> np.ndarray:
-    """One RK4 step of length T (s) of ``continuous_dynamics`` with the inputs held."""
-    k1 = continuous_dynamics(x, C_b_p, f_p, omega_ie)
-    k2 = continuous_dynamics(x + 0.5 * T * k1, C_b_p, f_p, omega_ie)
-    k3 = continuous_dynamics(x + 0.5 * T * k2, C_b_p, f_p, omega_ie)
-    k4 = continuous_dynamics(x + T * k3, C_b_p, f_p, omega_ie)
-    return x + T / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    """One RK4 step of length T (s) of ``continuous_dynamics`` with the inputs held
+    (computed component-first, contiguous)."""
+    xs = np.ascontiguousarray(np.moveaxis(x, -1, 0))
+    args = (C_b_p, f_p, omega_ie)
+    k1 = _dynamics(xs, *args)
+    k2 = _dynamics(xs + 0.5 * T * k1, *args)
+    k3 = _dynamics(xs + 0.5 * T * k2, *args)
+    k4 = _dynamics(xs + T * k3, *args)
+    return np.moveaxis(xs + T / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), 0, -1)
 
 
 def rk4_jacobian(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
