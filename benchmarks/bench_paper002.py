@@ -4,11 +4,11 @@ UnscentedKalmanFilter on the same model and data.
 
 1. Campaign cost: the episodes are prepared once (``prepare_all``, 2 worker processes,
    as ``run_campaign(..., workers=2)`` does); then per filter (ekf, ukf, sghkf-2,
-   sghkf-4) what ``run_campaign`` runs for it: the model for the batch of all episodes,
-   the filter (``run_alignment``) and the analysis (errors, NEES, convergence). Printed:
-   wall times, their total (= the campaign of the four filters), the filter's ms per
-   epoch per episode (batched), and the points per epoch (evaluations of the process
-   map per episode).
+   sghkf-4) what ``run_campaign`` runs for it (``run_filter``: the model for the batch
+   of all episodes, the filter in ``filter_threads`` threads, the analysis). Printed:
+   wall times, their total (= the campaign of the four filters), the filter's compute
+   per epoch per episode, and the points per epoch (evaluations of the process map per
+   episode).
 2. Our UKF (``make_filter("ukf")``: alpha 1, beta 2, kappa 0) batched over the episodes
    versus ``filterpy.kalman.UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints(10, 1,
    2, 0)`` (the same UT), episode by episode: fx calls our model's transition on one
@@ -31,11 +31,11 @@ import time
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from estimators.alignment import AlignmentRun, run_alignment
+from estimators.alignment import AlignmentRun
 from estimators.filters import make_filter
 from estimators.model import wrap_angle
 from models.units import arcmin, arcsec, deg
-from scenarios.campaign import analyse_run, episode_seeds, prepare_all
+from scenarios.campaign import episode_seeds, filter_threads, prepare_all, run_filter
 from scenarios.experiments import experiment as make_experiment
 
 FILTERS = ("ekf", "ukf", "sghkf-2", "sghkf-4")
@@ -43,29 +43,42 @@ START = "large-azimuth"
 N = 10
 
 
-def campaign_cost(experiment, episodes) -> float:
-    """Part 1: per filter the model, filter and analysis wall times on all episodes."""
+def campaign_cost(experiment, episodes, workers: int) -> float:
+    """Part 1: per filter what ``run_campaign`` runs (``run_filter``: model, filter in
+    ``filter_threads`` threads, analysis) on all episodes; wall times."""
     B = len(episodes)
     start_error = experiment.start_errors(episodes)[START]
     total = 0.0
-    print(f"{'filter':9s}{'points':>7s}{'model s':>9s}{'filter s':>10s}{'analysis s':>12s}"
-          f"{'total s':>9s}{'ms/epoch/episode':>18s}{'(wall)':>8s}")
+    print(f"{'filter':9s}{'points':>7s}{'threads':>8s}{'wall s':>9s}"
+          f"{'compute ms/epoch/episode':>26s}")
     for name in FILTERS:
+        threads = filter_threads(name, experiment, workers)
         t0 = time.perf_counter()
-        model = experiment.model(episodes, start_error)
-        t1 = time.perf_counter()
-        result = run_alignment(make_filter(name, **experiment.filter_options()), model)
-        t2 = time.perf_counter()
-        run = analyse_run(name, START, result, episodes, experiment)
-        t3 = time.perf_counter()
-        K = result.t.size - 1
-        total += t3 - t0
+        run = run_filter(name, START, start_error, episodes, experiment, threads)
+        wall = time.perf_counter() - t0
+        total += wall
         diverged = int(run.diverged.sum())
-        print(f"{name:9s}{make_filter(name).rule.point_count(N):7d}{t1 - t0:9.2f}"
-              f"{t2 - t1:10.2f}{t3 - t2:12.2f}{t3 - t0:9.2f}"
-              f"{result.seconds_per_epoch * 1e3 / B:18.3f}{(t2 - t1) * 1e3 / (K * B):8.3f}"
+        print(f"{name:9s}{make_filter(name).rule.point_count(N):7d}{threads:8d}{wall:9.2f}"
+              f"{run.result.seconds_per_epoch * 1e3 / B:26.3f}"
               + (f"   ({diverged} diverged)" if diverged else ""))
     return total
+
+
+def tensor_cost(workers: int, episodes: int = 5, seconds: float = 60.0) -> None:
+    """The tensor-product GH filter ghkf-3 (3^10 = 59049 points) on a few short episodes,
+    beside sghkf-4 on the same: the cost the sparse grid avoids."""
+    experiment = make_experiment("paper002", fine_duration=seconds)
+    prepared = prepare_all(experiment, episode_seeds(0, episodes), None, False, workers,
+                           progress=False)
+    start_error = experiment.start_errors(prepared)[START]
+    for name in ("sghkf-4", "ghkf-3"):
+        t0 = time.perf_counter()
+        run = run_filter(name, START, start_error, prepared, experiment,
+                         filter_threads(name, experiment, workers))
+        wall = time.perf_counter() - t0
+        print(f"{name:9s}{make_filter(name).rule.point_count(N):7d} points: "
+              f"{run.result.seconds_per_epoch * 1e3 / episodes:8.2f} ms compute per "
+              f"episode-epoch ({episodes} episodes x {seconds:g} s, {wall:.1f} s wall)")
 
 
 # -- filterpy side -----------------------------------------------------------------------
@@ -193,10 +206,11 @@ def main() -> None:
     prep = time.perf_counter() - t0
     print(f"episode preparation (simulation + open-loop INS), {args.workers} workers: "
           f"{prep:.2f} s wall ({prep / args.episodes * 1e3:.0f} ms per episode)")
-    filters = campaign_cost(experiment, episodes)
+    filters = campaign_cost(experiment, episodes, args.workers)
     print(f"total: {prep + filters:.1f} s wall (preparation {prep:.1f} s + filters "
-          f"{filters:.1f} s); ms/epoch/episode = filter compute per epoch / episodes "
-          f"(batched), (wall) = filter wall incl. set-up")
+          f"{filters:.1f} s); compute = the filter's own time summed over its threads")
+    print()
+    tensor_cost(args.workers)
     print()
     n_fp = min(args.filterpy_episodes, args.episodes)
     print(f"UKF: ours (batched) vs filterpy (per episode), first {args.compare_seconds:g} s "

@@ -356,6 +356,29 @@ def rk4_jacobian(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
     return I + T / 6.0 * (D1 + 2.0 * D2 + 2.0 * D3 + D4)
 
 
+def midpoint_step(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
+                  omega_ie: np.ndarray) -> np.ndarray:
+    """One explicit midpoint (second-order Runge-Kutta) step of length T (s) with the
+    inputs held: x + T f(x + T/2 f(x)). The model's discrete process: on a static base
+    the Euler errors move at ~Omega |alpha| < 1e-4 rad/s, so the third-order local error
+    is ~1e-13 rad and m/s per 1-s epoch (tests: the model follows the INS to 1e-8 rad over
+    600 s), at half the cost of RK4 (the sparse grids evaluate it on 10^5 points)."""
+    xs = np.ascontiguousarray(np.moveaxis(x, -1, 0))
+    args = (C_b_p, f_p, omega_ie)
+    k1 = _dynamics(xs, *args)
+    return np.moveaxis(xs + T * _dynamics(xs + 0.5 * T * k1, *args), 0, -1)
+
+
+def midpoint_jacobian(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
+                      omega_ie: np.ndarray) -> np.ndarray:
+    """d(midpoint_step)/dx (..., 10, 10): I + T A(x_mid) (I + T/2 A(x))."""
+    I = np.eye(N_STATES)
+    args = (C_b_p, f_p, omega_ie)
+    x_mid = x + 0.5 * T * continuous_dynamics(x, *args)
+    return I + T * continuous_jacobian(x_mid, *args) @ (
+        I + 0.5 * T * continuous_jacobian(x, *args))
+
+
 def small_angle_dynamics(x: np.ndarray, C_b_n: np.ndarray, f_n: np.ndarray,
                          omega_ie: np.ndarray) -> np.ndarray:
     """The classic small-angle static model (ALGORITHMS (0.1)-(0.2), v = 0, no position
@@ -455,10 +478,10 @@ class EulerLargeMisalignmentModel(FilterModel):
         Cb, fb, wb = C_b_p[:, None], f_p[:, None], omega[:, None]
 
         def fn(x: np.ndarray) -> np.ndarray:
-            return rk4_step(x, T, Cb, fb, wb)
+            return midpoint_step(x, T, Cb, fb, wb)
 
         def jacobian(x: np.ndarray) -> np.ndarray:
-            return rk4_jacobian(x, T, C_b_p, f_p, omega)
+            return midpoint_jacobian(x, T, C_b_p, f_p, omega)
 
         # Q_k = G q G^T T at the latest estimate (ALGORITHMS 0, "Units").
         alpha = self._x_lin[:, ALPHA]
@@ -497,5 +520,5 @@ class SmallAngleModel(EulerLargeMisalignmentModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         noise = super().transition(k, q_scale).noise
-        Phi = rk4_jacobian(np.zeros((self.batch, N_STATES)), self.T, *self._args(k))
+        Phi = midpoint_jacobian(np.zeros((self.batch, N_STATES)), self.T, *self._args(k))
         return Transition(noise=noise, matrix=Phi)

@@ -223,11 +223,50 @@ def analyse_run(name: str, start: str, result: FineResult, episodes: list[Prepar
 
 
 def run_filter(name: str, start: str, start_error: np.ndarray,
-               episodes: list[PreparedEpisode], experiment: Experiment) -> FilterRun:
-    """One filter on all episodes from a starting misalignment phi E, N, U (rad)."""
-    filt = make_filter(name, **experiment.filter_options())
-    result = run_alignment(filt, experiment.model(episodes, start_error))
+               episodes: list[PreparedEpisode], experiment: Experiment,
+               threads: int = 1) -> FilterRun:
+    """One filter on all episodes from a starting error (rad; common (3,) or per episode
+    (B, 3)). With threads > 1 the batch is split into that many chunks run in threads
+    (NumPy releases the GIL in its array loops; the episodes are independent, so the
+    result is the same as one batch)."""
+    start_error = np.asarray(start_error, dtype=float)
+    per_episode = np.broadcast_to(start_error, (len(episodes), 3))
+    chunks = [c for c in np.array_split(np.arange(len(episodes)), max(1, threads)) if c.size]
+
+    def run_chunk(idx: np.ndarray) -> FineResult:
+        filt = make_filter(name, **experiment.filter_options())
+        return run_alignment(filt, experiment.model([episodes[i] for i in idx],
+                                                    per_episode[idx]))
+
+    if len(chunks) == 1:
+        result = run_chunk(chunks[0])
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(len(chunks)) as pool:
+            result = concatenate_results(list(pool.map(run_chunk, chunks)))
     return analyse_run(name, start, result, episodes, experiment)
+
+
+def filter_threads(name: str, experiment: Experiment, workers: int) -> int:
+    """Threads worth giving a filter: all workers for rules with >= 100 points per
+    episode (their array work dominates), one otherwise (thread overhead would)."""
+    points = filter_entry(name).rule().point_count(experiment.state_count)
+    return workers if points >= 100 else 1
+
+
+def concatenate_results(parts: list[FineResult]) -> FineResult:
+    """One result from batch chunks (same epochs); seconds_per_epoch is the chunks'
+    summed compute time per epoch."""
+    width = max(p.factors.shape[-1] for p in parts)
+    factors = [np.pad(p.factors, ((0, 0), (0, 0), (0, width - p.factors.shape[-1])),
+                      constant_values=np.nan) for p in parts]
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    return FineResult(t=parts[0].t, C_s_n=cat("C_s_n"), P=cat("P"), sigma_n=cat("sigma_n"),
+                      x=cat("x"), factors=np.concatenate(factors), diverged=cat("diverged"),
+                      diverged_time=cat("diverged_time"),
+                      diverged_reason=sum((p.diverged_reason for p in parts), []),
+                      repairs=cat("repairs"),
+                      seconds_per_epoch=sum(p.seconds_per_epoch for p in parts))
 
 
 def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:
@@ -349,7 +388,7 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     jobs = [(f, s) for f in filters for s in experiment.starts]
     for name, start in tqdm(jobs, disable=not progress, desc="filters"):
         result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
-                                      experiment))
+                                      experiment, filter_threads(name, experiment, workers)))
     return result
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -91,13 +92,14 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     if config.world in ("car", "ship-waves"):
         return _simulate_dynamic(config, seed, ideal)
     rngs = episode_rngs(seed)
-    world = make_world(config, rngs["motion"])
-    plane = TangentPlane(config.latitude, config.longitude, config.height)
-    n_fine = config.imu_samples * TRUTH_OVERSAMPLING
-    t_fine = np.arange(n_fine + 1) * (config.duration / n_fine)
-    truth_fine = navigation_truth(world.sample(t_fine), plane)
-    imu_t, dtheta, dv = ideal_increments(truth_fine, TRUTH_OVERSAMPLING)
-    truth = truth_fine.take(slice(None, None, TRUTH_OVERSAMPLING))
+    where = (config.latitude, config.longitude, config.height, config.duration,
+             config.imu_samples)
+    if config.world == "static-platform":  # the same truth for every seed: computed once
+        truth, imu_t, dtheta, dv = _static_truth(config.motion, *where)
+        dtheta, dv = dtheta.copy(), dv.copy()
+    else:
+        truth, imu_t, dtheta, dv = _prescribed_truth(make_world(config, rngs["motion"]),
+                                                      *where)
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
     encoder = config.encoder
     offsets = np.zeros(2) if ideal else encoder.draw_offsets(rngs["encoder"])
@@ -105,6 +107,29 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
                else encoder.measure(truth.gimbal_angles, offsets))
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization)
+
+
+def _prescribed_truth(world: PrescribedWorld, latitude: float, longitude: float,
+                      height: float, duration: float, imu_samples: int):
+    """Truth at the IMU interval boundaries and the ideal increments (imu_t, dtheta, dv)
+    of a prescribed world whose plane origin is at latitude, longitude (rad), height (m),
+    over duration (s) in imu_samples intervals; MuJoCo is sampled at TRUTH_OVERSAMPLING
+    x the IMU rate."""
+    plane = TangentPlane(latitude, longitude, height)
+    n_fine = imu_samples * TRUTH_OVERSAMPLING
+    t_fine = np.arange(n_fine + 1) * (duration / n_fine)
+    truth_fine = navigation_truth(world.sample(t_fine), plane)
+    imu_t, dtheta, dv = ideal_increments(truth_fine, TRUTH_OVERSAMPLING)
+    return truth_fine.take(slice(None, None, TRUTH_OVERSAMPLING)), imu_t, dtheta, dv
+
+
+@lru_cache(maxsize=4)
+def _static_truth(motion, latitude: float, longitude: float, height: float,
+                  duration: float, imu_samples: int):
+    """``_prescribed_truth`` of the static platform, cached per process (its truth does
+    not depend on the episode); callers must not modify the arrays."""
+    return _prescribed_truth(StaticPlatformWorld(motion), latitude, longitude, height,
+                             duration, imu_samples)
 
 
 def _imu_errors(config, rngs, dtheta, dv, ideal):
