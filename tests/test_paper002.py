@@ -154,3 +154,17 @@ def test_scenario_filter_table_is_used_and_checked(tmp_path, capsys):
     assert main(["bench", "paper003", "--scenario", path, "--episodes", "1"]) == 2
     assert "paper003 runs on the ship-prescribed or ship-waves world" in \
         capsys.readouterr().err
+
+
+def test_threaded_batch_chunks_give_the_same_result():
+    """run_filter split over threads (batch chunks) equals the single batch exactly."""
+    from scenarios.campaign import prepare_all, run_filter
+
+    exp = experiment("paper002", fine_duration=20.0)
+    episodes = prepare_all(exp, [1, 2, 3], None, False, 1, progress=False)
+    start = exp.start_errors(episodes)["large-azimuth"]
+    one = run_filter("sghkf-3", "x", start, episodes, exp, threads=1)
+    two = run_filter("sghkf-3", "x", start, episodes, exp, threads=2)
+    np.testing.assert_array_equal(one.error_n, two.error_n)
+    np.testing.assert_array_equal(one.result.P, two.result.P)
+    np.testing.assert_array_equal(one.nees, two.nees)
