@@ -19,7 +19,7 @@ Dynamics, static base, ALGORITHMS (3.5):
   alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie^n - C_b^p (eps + w_g)]
   dv_dot_EN = [(I - C_p^n) f^p + C_p^n C_b^p ([nabla_x, nabla_y, 0] + w_a)]_EN
 with C_omega of ALGORITHMS (3.2) and f^p = C_b^p f~^b the computed specific force.
-Measurement: z = v_EN of the open-loop INS = [0_2x3, I_2, 0_2x5] x + v.
+Measurement: z = v_EN of the INS = [0_2x3, I_2, 0_2x5] x + v (the true velocity is 0).
 """
 from __future__ import annotations
 
@@ -145,6 +145,114 @@ def static_base_ins(dtheta: np.ndarray, dv: np.ndarray, dt: float, C_b_p0: np.nd
                            C_b_p_mid=quat_to_dcm(q_mid)[None], f_p=f_p[None],
                            v_EN=V_f[idx, :2][None], lat=np.array([float(lat)]),
                            h=np.array([float(h)]))
+
+
+@dataclass(frozen=True)
+class StaticBaseIntegrals:
+    """Filter-independent integrals of the static-base INS of ``static_base_ins`` over
+    the epochs, for a batch of B episodes: any filter's INS with initial attitude C0
+    (B, 3, 3), including one corrected by feedback, follows from them exactly.
+
+    The INS attitude is C_b^p(t) = E(t) C0 Q(t), with Q(t) the product of the body
+    increments (shared) and E(t) = exp(-[omega_ie x] t) = I + s(t) K + c(t) K^2 the n-frame
+    rotation (K = [n x], n the unit earth-rate axis, s = -sin(Omega t), c = 1 - cos(Omega
+    t)). The epoch's specific-force integral int C_b^p f dt (with the rotation term of
+    ``static_base_ins``) is then C0 U0 + K C0 U1 + K^2 C0 U2.
+
+    t (K+1,) s; K_axis (B, 3, 3); Q (B, K+1, 3, 3) and Q_mid (B, K, 3, 3); t_mid (K,) s;
+    U (B, K, 3, 3): U0, U1, U2 (m/s) stacked on axis 2; lat (B,) rad; h (B,) m. Gravity
+    has no E, N component, so the horizontal velocity needs none.
+    """
+
+    t: np.ndarray
+    K_axis: np.ndarray
+    Q: np.ndarray
+    Q_mid: np.ndarray
+    t_mid: np.ndarray
+    U: np.ndarray
+    lat: np.ndarray
+    h: np.ndarray
+
+    @property
+    def step(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+    @property
+    def batch(self) -> int:
+        return self.Q.shape[0]
+
+    def earth_rotation(self, t: float) -> np.ndarray:
+        """E(t) (B, 3, 3)."""
+        s, c = -np.sin(OMEGA_IE * t), 1.0 - np.cos(OMEGA_IE * t)
+        K = self.K_axis
+        return np.eye(3) + s * K + c * (K @ K)
+
+    def attitude(self, C0: np.ndarray, k: int) -> np.ndarray:
+        """C_b^p (B, 3, 3) at boundary k of the INS started from C0 (B, 3, 3)."""
+        return self.earth_rotation(self.t[k]) @ C0 @ self.Q[:, k]
+
+    def attitude_mid(self, C0: np.ndarray, k: int) -> np.ndarray:
+        """C_b^p (B, 3, 3) at the middle of epoch k."""
+        return self.earth_rotation(self.t_mid[k]) @ C0 @ self.Q_mid[:, k]
+
+    def delta_v(self, C0: np.ndarray, k: int) -> np.ndarray:
+        """int C_b^p f~ dt over epoch k (B, 3), m/s, ENU (gravity not included)."""
+        K, U = self.K_axis, self.U[:, k]
+        KC = K @ C0
+        return (np.einsum("bij,bj->bi", C0, U[:, 0]) + np.einsum("bij,bj->bi", KC, U[:, 1])
+                + np.einsum("bij,bj->bi", K @ KC, U[:, 2]))
+
+
+def static_base_integrals(dtheta: np.ndarray, dv: np.ndarray, dt: float, lat: float,
+                          h: float, epoch: float) -> StaticBaseIntegrals:
+    """The ``StaticBaseIntegrals`` (batch of one) of IMU increments dtheta (M, 3) rad and
+    dv (M, 3) m/s in b at interval dt (s), at the known position lat (rad), h (m), for
+    filter epochs of ``epoch`` s (the arithmetic of ``static_base_ins``, split so that the
+    initial attitude can change)."""
+    dtheta = np.asarray(dtheta, dtype=float)
+    dv = np.asarray(dv, dtype=float)
+    per_epoch = int(round(epoch / dt))
+    if per_epoch < 1 or abs(per_epoch * dt - epoch) > 1e-9 * max(epoch, 1.0):
+        raise ValueError(f"epoch {epoch} s must be a whole number of IMU intervals {dt} s")
+    K_epochs = dtheta.shape[0] // per_epoch
+    if K_epochs < 1:
+        raise ValueError(f"{dtheta.shape[0]} IMU samples are shorter than one epoch")
+    M = K_epochs * per_epoch
+    dtheta, dv = dtheta[:M], dv[:M]
+    axis = np.array([0.0, np.cos(lat), np.sin(lat)])
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                  [-axis[1], axis[0], 0.0]])
+    phi, dv_b = compensate(dtheta[None], dv[None])
+    phi, dv_b = phi[0], dv_b[0]
+    q_body = np.concatenate([[[1.0, 0.0, 0.0, 0.0]], quat_cumprod(rotvec_to_quat(phi))])
+    t_s = dt * np.arange(M)
+    s, c = -np.sin(OMEGA_IE * t_s)[:, None], (1.0 - np.cos(OMEGA_IE * t_s))[:, None]
+    u = quat_rotate(q_body[:-1], dv_b)           # Q_m dv_b (M, 3)
+    w = quat_rotate(q_body[:-1], dv)             # Q_m dv, for the rotation term
+    half = 0.5 * dt * OMEGA_IE
+    parts = np.stack([u, s * u - half * (1.0 - c) * w, c * u - half * s * w], 1)  # (M,3,3)
+    U = parts.reshape(K_epochs, per_epoch, 3, 3).sum(1)
+    idx = per_epoch * np.arange(K_epochs + 1)
+    j = idx[:-1] + per_epoch // 2
+    t = dt * idx
+    if per_epoch % 2 == 0:
+        q_mid = q_body[j]
+    else:
+        q_mid = quat_mul(q_body[j], rotvec_to_quat(0.5 * phi[j]))
+    return StaticBaseIntegrals(
+        t=t, K_axis=K[None], Q=quat_to_dcm(q_body[idx])[None],
+        Q_mid=quat_to_dcm(q_mid)[None], t_mid=t[:-1] + 0.5 * epoch, U=U[None],
+        lat=np.array([float(lat)]), h=np.array([float(h)]))
+
+
+def stack_integrals(parts: list[StaticBaseIntegrals]) -> StaticBaseIntegrals:
+    """One batch from several episodes' integrals (same time grid, else ValueError)."""
+    for other in parts[1:]:
+        if not np.array_equal(other.t, parts[0].t):
+            raise ValueError("episodes must share the filter time grid")
+    return StaticBaseIntegrals(t=parts[0].t, t_mid=parts[0].t_mid, **{
+        name: np.concatenate([getattr(p, name) for p in parts])
+        for name in ("K_axis", "Q", "Q_mid", "U", "lat", "h")})
 
 
 def stack_ins_inputs(inputs: list[StaticInsInputs]) -> StaticInsInputs:
@@ -429,15 +537,19 @@ PAPER002 = Paper002Tuning()
 
 class EulerLargeMisalignmentModel(FilterModel):
     """The 10-state Euler-error model of seed 002 on a static base for a batch of
-    episodes (module docstring; ALGORITHMS (3.1)-(3.5)). Open loop: the INS runs
-    unaided and the filter estimates its Euler error.
+    episodes (module docstring; ALGORITHMS (3.1)-(3.5)), with the model's own INS.
 
-    inputs: the INS runs (``static_base_ins`` / ``stack_ins_inputs``). tuning: P0 sigmas,
-    PSDs and measurement sigma (``Paper002Tuning``); P0: optional (B, 10, 10) initial
-    covariance overriding the tuning's; measurement_sigma: optional override, m/s.
+    integrals: the episodes' ``StaticBaseIntegrals``; C0 (B, 3, 3): the INS's initial
+    attitude C_b^p(0). tuning: P0 sigmas, PSDs and measurement sigma
+    (``Paper002Tuning``); P0: optional (B, 10, 10) initial covariance overriding the
+    tuning's; measurement_sigma: optional override, m/s. feedback_below: None runs the
+    INS open loop; a heading sigma (rad) below which an episode's estimate is fed back
+    after each update (ALGORITHMS 3.1: C_b^p <- C_p^n(alpha_hat) C_b^p, v <- v - dv_hat,
+    alpha and dv reset to zero, the covariance of alpha mapped through the reset's
+    Jacobian); before that the large-angle model runs open loop.
 
-    Transition: one RK4 step over the epoch with the epoch's C_b^p (mid-epoch) and mean
-    f^p held; analytic Jacobian (chain rule through the RK4 stages). Process noise
+    Transition: one explicit-midpoint step (``midpoint_step``) over the epoch with the
+    epoch's C_b^p (mid-epoch) and mean f^p held; analytic Jacobian. Process noise
     Q_k = G q G^T T with q = diag(q_a, q_a, q_g, q_g, q_g) (PSDs), G = d(x_dot)/d(w_a,
     w_g) at the latest estimate passed to ``feedback`` (x0 at the start): gyro noise
     enters alpha_dot as -C_omega^-1 C_b^p w_g, horizontal accelerometer noise enters
@@ -446,31 +558,39 @@ class EulerLargeMisalignmentModel(FilterModel):
 
     layout = LAYOUT
 
-    def __init__(self, inputs: StaticInsInputs, tuning: Paper002Tuning = PAPER002,
-                 P0: np.ndarray | None = None,
-                 measurement_sigma: float | None = None) -> None:
-        self.inputs, self.tuning = inputs, tuning
-        self.t = inputs.t
-        self.batch, self.epochs = inputs.f_p.shape[:2]
-        self.T = inputs.step
+    def __init__(self, integrals: StaticBaseIntegrals, C0: np.ndarray,
+                 tuning: Paper002Tuning = PAPER002, P0: np.ndarray | None = None,
+                 measurement_sigma: float | None = None,
+                 feedback_below: float | None = None) -> None:
+        self.integrals, self.tuning = integrals, tuning
+        self.t = integrals.t
+        self.batch, self.epochs = integrals.U.shape[:2]
+        self.T = integrals.step
         B = self.batch
+        self.C0 = np.broadcast_to(np.asarray(C0, dtype=float), (B, 3, 3)).copy()
+        self.feedback_below = feedback_below
         if P0 is not None:
             P0 = np.broadcast_to(np.asarray(P0, dtype=float), (B, N_STATES, N_STATES))
         self._P0 = tuning.initial_covariance(B) if P0 is None else P0.copy()
         sigma = tuning.measurement_sigma if measurement_sigma is None else measurement_sigma
         self._R = np.broadcast_to(sigma ** 2 * np.eye(2), (B, 2, 2))
         self._Hb = np.broadcast_to(_H, (B, 2, N_STATES))
-        lat = np.asarray(inputs.lat, dtype=float)
+        lat = np.asarray(integrals.lat, dtype=float)
         self._omega = np.stack([np.zeros_like(lat), OMEGA_IE * np.cos(lat),
                                 OMEGA_IE * np.sin(lat)], -1)          # (B, 3)
         self._x_lin = np.zeros((B, N_STATES))
+        self._v = np.zeros((B, 3))       # the INS velocity, ENU, m/s (up: unused)
+        self._v_epoch = -1               # last epoch whose velocity is in _v
+        self.feedback_count = np.zeros(B, int)
 
     def initial(self):
         self._x_lin = np.zeros((self.batch, N_STATES))
         return self._x_lin.copy(), self._P0.copy()
 
     def _args(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return self.inputs.C_b_p_mid[:, k], self.inputs.f_p[:, k], self._omega
+        """The epoch's mid-epoch C_b^p (B, 3, 3), mean f^p (B, 3), omega_ie^n (B, 3)."""
+        f_p = self.integrals.delta_v(self.C0, k) / self.T
+        return self.integrals.attitude_mid(self.C0, k), f_p, self._omega
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         C_b_p, f_p, omega = self._args(k)
@@ -495,22 +615,67 @@ class EulerLargeMisalignmentModel(FilterModel):
                           jacobian=jacobian, angles=LAYOUT.angles)
 
     def observation(self, k, r_scale=1.0):
+        """The INS's horizontal velocity at boundary k+1 (advanced once per epoch)."""
+        if self._v_epoch != k:
+            if k != self._v_epoch + 1:
+                raise ValueError(f"observation({k}) after observation({self._v_epoch}): "
+                                 "epochs must be taken in order")
+            self._v = self._v + self.integrals.delta_v(self.C0, k)
+            self._v_epoch = k
         return Observation(noise=r_scale * self._R, matrix=self._Hb,
-                           z=self.inputs.v_EN[:, k + 1].copy(), t=float(self.t[k + 1]))
+                           z=self._v[:, :2].copy(), t=float(self.t[k + 1]))
 
     def feedback(self, x, P, live):
-        """Open loop: keep x as the linearisation point of the process noise; x, P
-        unchanged."""
+        """Keep x as the linearisation point of the process noise; with feedback_below,
+        feed the estimate of the episodes whose heading sigma is below it back into this
+        model's INS at the current boundary and reset alpha, dv (and P's alpha block)."""
         self._x_lin = np.where(live[:, None], x, self._x_lin)
+        if self.feedback_below is None:
+            return x, P
+        ready = live & (np.sqrt(np.maximum(P[:, 2, 2], 0.0)) < self.feedback_below)
+        if not ready.any():
+            return x, P
+        x, P = x.copy(), P.copy()
+        b = np.flatnonzero(ready)
+        alpha = x[b, ALPHA]
+        R = C_p_n(alpha)                                   # C_p^n(alpha_hat)
+        E = self.integrals.earth_rotation(self.t[self._v_epoch + 1])[b]
+        # C_b^p <- R C_b^p at t: C0 <- E^T R E C0 (StaticBaseIntegrals).
+        self.C0[b] = np.swapaxes(E, -1, -2) @ R @ E @ self.C0[b]
+        self._v[b, :2] -= x[b, DV]
+        J = reset_jacobian(alpha)
+        Tm = np.broadcast_to(np.eye(N_STATES), (b.size, N_STATES, N_STATES)).copy()
+        Tm[:, ALPHA, ALPHA] = J
+        P[b] = Tm @ P[b] @ np.swapaxes(Tm, -1, -2)
+        x[b, ALPHA] = 0.0
+        x[b, DV] = 0.0
+        self._x_lin[b] = x[b]
+        self.feedback_count[b] += 1
         return x, P
 
     def attitude(self, k, x):
         """C_b^n = C_p^n(alpha_hat) C_b^p(t_k) (B, 3, 3) (s = b)."""
-        return C_p_n(x[:, ALPHA]) @ self.inputs.C_b_p[:, k]
+        return C_p_n(x[:, ALPHA]) @ self.integrals.attitude(self.C0, k)
 
     def attitude_sigma(self, k, P):
-        """1-sigma of the Euler errors alpha_E, alpha_N, alpha_U (B, 3), rad."""
+        """1-sigma of the Euler errors alpha_E, alpha_N, alpha_U (B, 3), rad (close to
+        the misalignment sigmas along E, N, U once alpha_E and alpha_N are small)."""
         return np.sqrt(np.maximum(np.diagonal(P[:, ALPHA, ALPHA], axis1=-2, axis2=-1), 0.0))
+
+
+def reset_jacobian(alpha_hat: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """d alpha' / d alpha (B, 3, 3) at alpha = alpha_hat for the feedback reset
+    C_p^n(alpha') = C_p^n(alpha) C_p^n(alpha_hat)^T (alpha' = 0 at alpha_hat), by
+    central differences."""
+    R_t = np.swapaxes(C_p_n(alpha_hat), -1, -2)
+    J = np.empty(alpha_hat.shape[:-1] + (3, 3))
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = step
+        plus = dcm_to_euler(C_p_n(alpha_hat + d) @ R_t)
+        minus = dcm_to_euler(C_p_n(alpha_hat - d) @ R_t)
+        J[..., :, j] = (plus - minus) / (2.0 * step)
+    return J
 
 
 class SmallAngleModel(EulerLargeMisalignmentModel):

@@ -15,10 +15,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.euler_large import (LAYOUT, PAPER002, EulerLargeMisalignmentModel,
-                                    Paper002Tuning,
-                                    StaticInsInputs, C_p_n, stack_ins_inputs,
-                                    static_base_ins, true_state)
+from estimators.euler_large import (LAYOUT, PAPER002, C_p_n, EulerLargeMisalignmentModel,
+                                    Paper002Tuning, StaticBaseIntegrals,
+                                    stack_integrals, static_base_integrals, true_state)
 from estimators.filters import make_filter
 from estimators.metrics import nees
 from estimators.model import wrap_angle
@@ -39,6 +38,8 @@ class Paper002Experiment(Experiment):
 
     gyro_bias_prior_deg_h: the filter's prior sigma of the gyro drift (the paper's
     0.1 deg/h, ten times the true drift; ALGORITHMS 3.3 explains what it costs).
+    feedback_sigma_deg: the estimate is fed back into each filter's INS once its heading
+    sigma is below this (ALGORITHMS 3.1; None: open loop throughout).
     heading_threshold_arcmin: heading convergence = first time after which the heading
     error stays within it (60' = 1 deg, *assumed*).
     """
@@ -49,6 +50,7 @@ class Paper002Experiment(Experiment):
     azimuth_error_deg: float = 58.5
     level_error_sigma_deg: float = 1.0
     gyro_bias_prior_deg_h: float = 0.1
+    feedback_sigma_deg: float | None = 5.0
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 60.0
 
@@ -117,10 +119,17 @@ class Paper002Experiment(Experiment):
     def model(self, episodes, start_error):
         start_error = np.broadcast_to(np.asarray(start_error, dtype=float),
                                       (len(episodes), 3))
-        inputs = [e.ins_for(s, self.filter_step) for e, s in zip(episodes, start_error)]
+        if any(not np.isclose(e.integrals.step, self.filter_step) for e in episodes):
+            raise ConfigError(f"paper002: episodes were prepared with another filter step "
+                              f"than {self.filter_step:g} s")
+        C_b_n0 = np.stack([e.C_b_n_true[0] for e in episodes])
+        C0 = np.swapaxes(C_p_n(start_error), -1, -2) @ C_b_n0   # INS start: C_b^p(0)
         config = self.scenario_config()
-        return EulerLargeMisalignmentModel(stack_ins_inputs(inputs), self.tuning(config),
-                                           P0=self.initial_covariance(config))
+        feedback = (None if self.feedback_sigma_deg is None
+                    else self.feedback_sigma_deg * deg)
+        return EulerLargeMisalignmentModel(
+            stack_integrals([e.integrals for e in episodes]), C0, self.tuning(config),
+            P0=self.initial_covariance(config), feedback_below=feedback)
 
     def attitude_sigma(self):
         """Euler-error sigmas of a random start (the env's): the experiment's level sigma
@@ -135,7 +144,9 @@ class Paper002Experiment(Experiment):
     def nees(self, result, episodes, error_n):
         """NEES of the Euler error, accelerometer (x, y) and gyro biases (8 states)."""
         K = result.t.size
-        C_b_p = np.stack([e.C_b_p_at(K) for e in episodes])
+        # The INS attitude the estimate refers to: C_b^p = C_p^n(alpha_hat)^T C_b^n_hat.
+        alpha_hat = result.x[:, :, LAYOUT["euler_error"]]
+        C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, -2) @ result.C_s_n
         C_true = np.stack([e.C_b_n_true[:K] for e in episodes])
         alpha = true_state(C_true, C_b_p)
         err = np.concatenate([
@@ -157,44 +168,31 @@ class Paper002Experiment(Experiment):
 @dataclass
 class Paper002Episode(PreparedEpisode):
     """One static-base episode (``PreparedEpisode``; C_s_b = I): start_error (3,) rad,
-    the Euler error [alpha_E, alpha_N, alpha_U] of the INS's initial attitude; ins, the
-    open-loop INS at the filter epochs (batch of one). The IMU increments are kept in
-    memory (not saved) so that the env can restart the INS from another error."""
+    the Euler error [alpha_E, alpha_N, alpha_U] of the INS's initial attitude drawn for
+    it; integrals, the filter-independent INS integrals (batch of one), from which a
+    filter's own INS follows for any start and any feedback."""
 
     start_error: np.ndarray
-    ins: StaticInsInputs
-    increments: tuple[np.ndarray, np.ndarray, float] | None = None
+    integrals: StaticBaseIntegrals
 
-    def C_b_p_at(self, K: int) -> np.ndarray:
-        return self.ins.C_b_p[0, :K]
-
-    def ins_for(self, start_error: np.ndarray, step: float) -> StaticInsInputs:
-        """The INS started from this Euler error (the prepared one, or rerun)."""
-        if np.array_equal(start_error, self.start_error) and np.isclose(self.ins.step, step):
-            return self.ins
-        if self.increments is None:
-            raise ConfigError("paper002: a saved episode starts from its own drawn error; "
-                              "another start needs the episode simulated anew")
-        dtheta, dv, dt = self.increments
-        C_b_p0 = np.swapaxes(C_p_n(np.asarray(start_error)), -1, -2) @ self.C_b_n_true[0]
-        return static_base_ins(dtheta, dv, dt, C_b_p0, self.lat, self.h, step)
+    _FIELDS = ("K_axis", "Q", "Q_mid", "U")
 
     def arrays(self):
-        ins = self.ins
+        ins = self.integrals
         return {"seed": self.seed, "start_error": self.start_error, "t": ins.t,
-                "C_b_p": ins.C_b_p[0], "C_b_p_mid": ins.C_b_p_mid[0], "f_p": ins.f_p[0],
-                "v_EN": ins.v_EN[0], "C_s_n_true": self.C_s_n_true,
-                "C_b_n_true": self.C_b_n_true, "gyro_bias": self.gyro_bias,
-                "accel_bias": self.accel_bias, "lat": self.lat, "h": self.h}
+                "t_mid": ins.t_mid, **{name: getattr(ins, name)[0] for name in self._FIELDS},
+                "C_s_n_true": self.C_s_n_true, "C_b_n_true": self.C_b_n_true,
+                "gyro_bias": self.gyro_bias, "accel_bias": self.accel_bias, "lat": self.lat,
+                "h": self.h}
 
     @classmethod
     def from_arrays(cls, f):
         lat, h = float(f["lat"]), float(f["h"])
-        ins = StaticInsInputs(t=f["t"], C_b_p=f["C_b_p"][None], C_b_p_mid=f["C_b_p_mid"][None],
-                              f_p=f["f_p"][None], v_EN=f["v_EN"][None], lat=np.array([lat]),
-                              h=np.array([h]))
+        ins = StaticBaseIntegrals(
+            t=f["t"], t_mid=f["t_mid"], lat=np.array([lat]), h=np.array([h]),
+            **{name: f[name][None] for name in cls._FIELDS})
         K1 = f["t"].size
-        return cls(seed=int(f["seed"]), start_error=f["start_error"], ins=ins,
+        return cls(seed=int(f["seed"]), start_error=f["start_error"], integrals=ins,
                    C_s_n_true=f["C_s_n_true"], C_b_n_true=f["C_b_n_true"],
                    C_s_b=np.broadcast_to(np.eye(3), (K1, 3, 3)).copy(),
                    gyro_bias=f["gyro_bias"], accel_bias=f["accel_bias"], lat=lat, h=h)
@@ -202,7 +200,8 @@ class Paper002Episode(PreparedEpisode):
 
 def prepare_episode(experiment: Paper002Experiment, seed: int,
                     config: ScenarioConfig | None = None) -> Paper002Episode:
-    """Simulate the static platform, draw the level errors, run the open-loop INS."""
+    """Simulate the static platform, draw the level errors, integrate the IMU for the
+    filters' INS."""
     config = config or experiment.scenario_config()
     episode = simulate(config, seed=seed)
     truth = episode.truth
@@ -212,18 +211,16 @@ def prepare_episode(experiment: Paper002Experiment, seed: int,
                       experiment.azimuth_error_deg * deg])
     step = experiment.filter_step
     per_step = int(round(step * config.imu_rate))
-    C_b_n = quat_to_dcm(truth.q_b_n[::per_step])
-    C_b_p0 = C_p_n(start).T @ C_b_n[0]
-    ins = static_base_ins(episode.dtheta, episode.dv, config.imu_interval, C_b_p0, lat, h,
-                          step)
-    K1 = ins.t.size
+    integrals = static_base_integrals(episode.dtheta, episode.dv, config.imu_interval, lat,
+                                      h, step)
+    K1 = integrals.t.size
     return Paper002Episode(
-        seed=seed, start_error=start, ins=ins, C_s_n_true=quat_to_dcm(
-            truth.q_s_n[::per_step])[:K1], C_b_n_true=C_b_n[:K1],
+        seed=seed, start_error=start, integrals=integrals,
+        C_s_n_true=quat_to_dcm(truth.q_s_n[::per_step])[:K1],
+        C_b_n_true=quat_to_dcm(truth.q_b_n[::per_step])[:K1],
         C_s_b=np.broadcast_to(np.eye(3), (K1, 3, 3)).copy(),
         gyro_bias=episode.imu_realization.gyro.bias,
-        accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h,
-        increments=(episode.dtheta, episode.dv, config.imu_interval))
+        accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h)
 
 
 def point_count(name: str) -> int:

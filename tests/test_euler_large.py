@@ -9,7 +9,8 @@ from estimators.euler_large import (EulerLargeMisalignmentModel, Paper002Tuning,
                                     continuous_dynamics, continuous_jacobian,
                                     midpoint_jacobian, midpoint_step, rk4_jacobian,
                                     rk4_step, small_angle_dynamics, stack_ins_inputs,
-                                    state_vector, static_base_ins, true_state)
+                                    stack_integrals, state_vector, static_base_ins,
+                                    static_base_integrals, true_state)
 from estimators.filters import make_filter
 from models.attitude import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
 from models.earth import OMEGA_IE, normal_gravity
@@ -183,15 +184,56 @@ def test_filters_converge_from_58_5_deg_heading_error(rng):
     ten times the true drift) the drift estimates wander during the transient and carry
     heading with them (ALGORITHMS 3.3); the tighter prior 0.01 deg/h is used here.
     A small-angle linear KF on the same data stalls at several degrees."""
-    runs = [static_base_ins(*static_increments(600.0, gyro_noise=0.01 * deg_per_h, rng=rng),
-                            DT, C_p_n(ALPHA0).T @ C_BN, LAT, H, 1.0) for _ in range(2)]
-    inputs = stack_ins_inputs(runs)
+    runs = [static_base_integrals(*static_increments(600.0, gyro_noise=0.01 * deg_per_h,
+                                                     rng=rng), DT, LAT, H, 1.0)
+            for _ in range(2)]
+    inputs = stack_integrals(runs)
+    C0 = np.broadcast_to(C_p_n(ALPHA0).T @ C_BN, (2, 3, 3))
     tuning = Paper002Tuning(gyro_bias_sigma=0.01 * deg_per_h)
     for name in ("ekf", "sghkf-2"):
-        result = run_alignment(make_filter(name), EulerLargeMisalignmentModel(inputs, tuning))
+        result = run_alignment(make_filter(name),
+                               EulerLargeMisalignmentModel(inputs, C0, tuning))
         assert not result.diverged.any(), name
         heading = _heading_error(result.C_s_n[:, -1])
         assert np.all(heading < 1 * deg), (name, heading / arcmin)
         assert np.allclose(_heading_error(result.C_s_n[:, 0]), 58.5 * deg, atol=0.01 * deg)
-    linear = run_alignment(make_filter("kf"), SmallAngleModel(inputs, tuning))
+    linear = run_alignment(make_filter("kf"), SmallAngleModel(inputs, C0, tuning))
     assert np.all(_heading_error(linear.C_s_n[:, -1]) > 5 * deg)
+
+
+@pytest.mark.parametrize("epoch", [1.0, 0.05])
+def test_integrals_reproduce_the_ins_for_any_start(epoch):
+    """The filter-independent integrals give, for a start C0, exactly the INS of
+    ``static_base_ins`` (attitude, mid-epoch attitude, velocity)."""
+    dtheta, dv = static_increments(60.0)
+    C0 = C_p_n(ALPHA0).T @ C_BN
+    ins = static_base_ins(dtheta, dv, DT, C0, LAT, H, epoch)
+    integrals = static_base_integrals(dtheta, dv, DT, LAT, H, epoch)
+    K = integrals.t.size - 1
+    att = np.stack([integrals.attitude(C0[None], k)[0] for k in range(K + 1)])
+    mid = np.stack([integrals.attitude_mid(C0[None], k)[0] for k in range(K)])
+    v = np.cumsum([integrals.delta_v(C0[None], k)[0] for k in range(K)], axis=0)
+    np.testing.assert_allclose(att, ins.C_b_p[0], atol=1e-14)
+    np.testing.assert_allclose(mid, ins.C_b_p_mid[0], atol=1e-14)
+    np.testing.assert_allclose(v[:, :2], ins.v_EN[0, 1:], atol=1e-11)
+
+
+def test_feedback_keeps_the_estimate_and_zeroes_the_state():
+    """Closed loop: after feeding alpha_hat back, the model's attitude equals the
+    open-loop estimate C_p^n(alpha_hat) C_b^p; alpha and dv are zero; the INS velocity
+    drops by dv_hat; the covariance stays symmetric positive definite."""
+    dtheta, dv = static_increments(10.0)
+    integrals = static_base_integrals(dtheta, dv, DT, LAT, H, 1.0)
+    C0 = (C_p_n(ALPHA0).T @ C_BN)[None]
+    model = EulerLargeMisalignmentModel(integrals, C0, feedback_below=np.inf)
+    x, P = model.initial()
+    model.observation(0)
+    x[0, :3] = [0.004, -0.012, 1.0]
+    x[0, 3:5] = [0.02, -0.01]
+    before = model.attitude(1, x)
+    v_before = model.observation(0).z.copy()
+    x2, P2 = model.feedback(x, P, np.array([True]))
+    np.testing.assert_allclose(model.attitude(1, x2), before, atol=1e-14)
+    np.testing.assert_array_equal(x2[0, :5], 0.0)
+    np.testing.assert_allclose(model.observation(0).z, v_before - x[0, 3:5], atol=1e-15)
+    assert np.all(np.linalg.eigvalsh(P2[0]) > 0) and np.allclose(P2, P2.transpose(0, 2, 1))

@@ -73,7 +73,8 @@ def test_sigma_point_filters_converge_from_58_deg(large_azimuth, name):
 
 def test_small_angle_kf_does_not_converge_from_58_deg(large_azimuth):
     exp, ep = large_azimuth
-    small = SmallAngleModel(exp.model([ep], ep.start_error[None]).inputs, exp.tuning())
+    model = exp.model([ep], ep.start_error[None])
+    small = SmallAngleModel(model.integrals, model.C0, exp.tuning())
     assert abs(run("kf", exp, ep, small).error_n[0, -1, 2]) > 5 * 60 * arcmin
 
 
