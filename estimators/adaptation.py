@@ -237,3 +237,44 @@ class ImprovedMultipleFadingFactors(_PerAxisFading):
         J = ctx.PhiPPhi + ctx.Q
         lam, L = self._factors(C - ctx.R, J, ctx)
         return Adjustment(L @ J @ np.swapaxes(L, -1, -2), None, lam)
+
+
+class MeasurementFadingFactor(InnovationFading):
+    """Single factor on R (ALGORITHMS (2.10); the sway as a measurement disturbance):
+    J = Phi P Phi^T + Q, lambda = max(1, tr(C_k - H J H^T) / tr R), R_k = lambda R,
+    P_pred = J (not faded)."""
+
+    n_factors = 1
+    name = "measurement-fading"
+
+    def adapt(self, ctx):
+        C = self.innovation_covariance(ctx.innovation, ctx.valid)
+        N = C - _sandwich(ctx.H, ctx.PhiPPhi + ctx.Q)
+        lam = self._bound(np.trace(N, axis1=-2, axis2=-1)
+                          / np.trace(ctx.R, axis1=-2, axis2=-1))[:, None]
+        return Adjustment(None, lam[:, :, None] * ctx.R, lam)
+
+
+class MeasurementAxisFading(InnovationFading):
+    """Per-axis factors on R along local E, N, U (ALGORITHMS (2.11)): with U the
+    observation's axes (measurement axes to E, N, U), C^n = U C_k U^T, (H J H^T)^n and
+    R^n likewise, lambda_j = max(1, (C^n_jj - (H J H^T)^n_jj) / R^n_jj),
+    S = diag(sqrt(lambda)), R_k = U^T S R^n S U; P_pred = J. Fading Q or not makes no
+    difference here: the MAKF-R and IMAKF-R forms coincide."""
+
+    n_factors = 3
+    name = "measurement-axis-fading"
+
+    def adapt(self, ctx):
+        if ctx.axes is None:
+            raise ValueError("per-axis measurement factors need the observation's axes")
+        U, Ut = ctx.axes, np.swapaxes(ctx.axes, -1, -2)
+        C = self.innovation_covariance(ctx.innovation, ctx.valid)
+        J_n = U @ _sandwich(ctx.H, ctx.PhiPPhi + ctx.Q) @ Ut
+        R_n = U @ ctx.R @ Ut
+        diag = lambda A: np.diagonal(A, axis1=-2, axis2=-1)  # noqa: E731
+        lam = self._bound((diag(U @ C @ Ut) - diag(J_n)) / diag(R_n))
+        self.n_factors = lam.shape[-1]
+        s = np.sqrt(lam)
+        R_k = Ut @ (s[:, :, None] * R_n * s[:, None, :]) @ U
+        return Adjustment(None, R_k, lam)

@@ -14,6 +14,7 @@ import numpy as np
 
 from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                    ImprovedMultipleFadingFactors, InnovationFading,
+                                   MeasurementAxisFading, MeasurementFadingFactor,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
 from estimators.model import Observation, Transition, wrap_angle
 from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
@@ -257,6 +258,14 @@ FILTERS: dict[str, FilterEntry] = {
                           "MAKF with factors along local E, N, U", True),
     "imakf-n": FilterEntry(LinearizationRule, _local_level(ImprovedMultipleFadingFactors),
                            "IMAKF with factors along local E, N, U", True),
+    "sakf-r": FilterEntry(LinearizationRule, MeasurementFadingFactor,
+                          "single fading factor on R (the sway as a measurement "
+                          "disturbance, ALGORITHMS 2.10)", True),
+    "makf-r": FilterEntry(LinearizationRule, MeasurementAxisFading,
+                          "fading factors on R along local E, N, U (ALGORITHMS 2.11)", True),
+    "imakf-r": FilterEntry(LinearizationRule, MeasurementAxisFading,
+                           "IMAKF on R: the same as makf-r (fading Q makes no difference "
+                           "when R is scaled)", True),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),

@@ -69,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
                        help="Monte Carlo episodes (default: 100 for paper002, 50 for "
                        "paper003)")
+    bench.add_argument("--setup", choices=["default", "paper"], default="default",
+                       help="paper003: 'paper' reproduces the paper's setup (biases fixed "
+                       "in the hull frame, calm-sea R, fading factors on R; README)")
     bench.add_argument("--scenario", metavar="NAME|FILE.toml",
                        help="scenario to run the paper's experiment on (default: the "
                        "paper's: static-large-azimuth for paper002, ship-sway-rotary for "
@@ -109,8 +112,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
-    exp = (experiment(args.paper) if args.scenario is None
-           else experiment(args.paper, scenario=args.scenario))
+    exp = (experiment(args.paper, args.setup) if args.scenario is None
+           else experiment(args.paper, args.setup, scenario=args.scenario))
     filters = (list(exp.default_filters) if args.filters is None
                else [f.strip() for f in args.filters.split(",") if f.strip()])
     if not filters:

@@ -17,6 +17,7 @@ from sensors.gps import GPS_PRESETS, GpsSpec
 from sensors.imu import IMU_PRESETS, ImuSpec
 from sensors.odometer import ODOMETER_PRESETS, OdometerSpec
 
+BIAS_FRAMES = ("sensor", "hull")
 WORLDS = ("car", "ship-prescribed", "ship-waves", "static-platform")
 PHYSICS_RATE = {"car": 500.0, "ship-waves": 500.0}
 """MuJoCo rates of the dynamic worlds, Hz; their IMU rate must divide it."""
@@ -91,6 +92,9 @@ class ScenarioConfig:
     random_linear_phase: bool
     odometer: OdometerSpec | None = None
     gps: GpsSpec | None = None
+    imu_bias_frame: str = "sensor"
+    """Frame in which the drawn constant biases are constant: "sensor" (they turn with a
+    rotary IMU, which modulates them) or "hull" (no modulation)."""
     filter: tuple[tuple[str, Any], ...] = ()
     """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
     scenario's experiment validates (e.g. paper 002's initial_covariance)."""
@@ -187,6 +191,13 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         raise ConfigError(f"world = {world!r} is unknown; valid choices: " + ", ".join(WORLDS))
     origin, run, imu, motion = (section(s) for s in ("origin", "run", "imu", "motion"))
     preset = imu.get("preset")
+    unknown = sorted(set(imu) - {"preset", "bias_frame"})
+    if unknown:
+        raise ConfigError(f"imu.{unknown[0]} is not a parameter; valid: bias_frame, preset")
+    bias_frame = imu.get("bias_frame", "sensor")
+    if bias_frame not in BIAS_FRAMES:
+        raise ConfigError(f"imu.bias_frame = {bias_frame!r} is unknown; valid choices: "
+                          + ", ".join(BIAS_FRAMES))
     if preset not in IMU_PRESETS:
         raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
                           + ", ".join(sorted(IMU_PRESETS)))
@@ -217,7 +228,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
             world=world, latitude=origin["latitude"], longitude=origin["longitude"],
             height=origin["height"], duration=run["duration"], imu_rate=run["imu_rate"],
-            imu_preset=preset, imu=IMU_PRESETS[preset], encoder=encoder, motion=motion_obj,
+            imu_preset=preset, imu=IMU_PRESETS[preset], imu_bias_frame=bias_frame,
+            encoder=encoder, motion=motion_obj,
             random_linear_phase=random_phase, odometer=odometer, gps=gps,
             filter=filter_table)
     except KeyError as exc:

@@ -16,11 +16,22 @@ SCENARIO_PAPER = {"ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003
 """Shipped scenarios with an alignment pipeline (the env is registered for these)."""
 
 
-def experiment(paper: str, **settings) -> "Experiment":
-    """A paper's experiment with its default settings, overridden by ``settings``."""
+SETUPS = ("default", "paper")
+
+
+def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
+    """A paper's experiment with its default settings, or a named setup ("paper": the
+    paper's own setup, reproduced for a stated reason; paper003 only), overridden by
+    ``settings``."""
+    if setup not in SETUPS:
+        raise ConfigError(f"--setup {setup!r} is unknown; valid choices: " + ", ".join(SETUPS))
+    if setup == "paper" and paper != "paper003":
+        raise ConfigError(f"--setup paper exists for paper003 only, not {paper}")
     if paper == "paper003":
-        from scenarios.paper003 import Paper003Experiment
+        from scenarios.paper003 import PAPER_SETUP, Paper003Experiment
         cls = Paper003Experiment
+        if setup == "paper":
+            settings = {**PAPER_SETUP, **settings}
     elif paper == "paper002":
         from scenarios.paper002 import Paper002Experiment
         cls = Paper002Experiment

@@ -100,7 +100,8 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     else:
         truth, imu_t, dtheta, dv = _prescribed_truth(make_world(config, rngs["motion"]),
                                                       *where)
-    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
+    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
+                                          truth.gimbal_angles)
     encoder = config.encoder
     offsets = np.zeros(2) if ideal else encoder.draw_offsets(rngs["encoder"])
     reading = (truth.gimbal_angles.copy() if ideal or not config.motion.has_gimbal
@@ -132,12 +133,20 @@ def _static_truth(motion, latitude: float, longitude: float, height: float,
                              duration, imu_samples)
 
 
-def _imu_errors(config, rngs, dtheta, dv, ideal):
+def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
+    """Erroneous increments and the drawn realization (None when ideal). With
+    ``imu.bias_frame = "hull"`` the constant biases are constant in the hull frame:
+    C_b^s at each interval's middle (from the true gimbal angles (M+1, 2)) rotates them."""
     if ideal:
         return dtheta, dv, None
     realization = config.imu.draw(rngs["imu_realization"])
+    rotation = None
+    if config.imu_bias_frame == "hull":
+        from models.attitude import rot_x, rot_z
+        mid = 0.5 * (gimbal_angles[:-1] + gimbal_angles[1:])
+        rotation = np.swapaxes(rot_z(mid[:, 0]) @ rot_x(mid[:, 1]), -1, -2)
     dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu, realization,
-                                  rngs["imu_noise"])
+                                  rngs["imu_noise"], rotation)
     return dtheta, dv, realization
 
 
@@ -175,7 +184,8 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     idx = np.arange(m + 1) * k
     truth = plane_truth(plane, run.t[idx], site[idx], v_site[idx], run.quat[idx],
                         q_s_t[idx], gimbal[idx])
-    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal)
+    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
+                                          truth.gimbal_angles)
     extra = {} if run.cross_track is None else {"cross_track": run.cross_track[idx]}
     if config.odometer is not None:
         odo = config.odometer

@@ -200,10 +200,15 @@ def ideal_increments(truth: NavigationTruth, decimation: int = 2
 
 
 def _triad_errors(x: np.ndarray, dt: float, spec: TriadSpec, real: TriadRealization,
-                  rng: np.random.Generator) -> np.ndarray:
-    """Increments x (M, 3) with the triad's errors applied."""
+                  rng: np.random.Generator, bias_rotation: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """Increments x (M, 3) with the triad's errors applied; bias_rotation (M, 3, 3): the
+    constant bias is constant in another frame and rotated into the sensor frame per
+    interval (None: constant in the sensor frame)."""
     m = x.shape[0]
-    y = x @ real.error_matrix.T + real.bias * dt
+    bias = real.bias if bias_rotation is None else np.einsum("mij,j->mi", bias_rotation,
+                                                            real.bias)
+    y = x @ real.error_matrix.T + bias * dt
     if spec.white_noise_density > 0.0:
         y += spec.white_noise_density * math.sqrt(dt) * rng.standard_normal((m, 3))
     if spec.bias_instability > 0.0:
@@ -225,13 +230,17 @@ def _triad_errors(x: np.ndarray, dt: float, spec: TriadSpec, real: TriadRealizat
 
 
 def apply_imu_errors(dtheta: np.ndarray, dv: np.ndarray, dt: float, spec: ImuSpec,
-                     realization: ImuRealization, rng: np.random.Generator
+                     realization: ImuRealization, rng: np.random.Generator,
+                     bias_rotation: np.ndarray | None = None
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Measured increments from ideal ones (M, 3) at interval dt (s)."""
+    """Measured increments from ideal ones (M, 3) at interval dt (s). bias_rotation
+    (M, 3, 3), optional: the drawn constant biases are constant in a frame h and
+    C_h^s over each interval rotates them into the sensor frame (e.g. h = the hull of a
+    rotary IMU: no modulation)."""
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0 s, got {dt}")
-    return (_triad_errors(dtheta, dt, spec.gyro, realization.gyro, rng),
-            _triad_errors(dv, dt, spec.accel, realization.accel, rng))
+    return (_triad_errors(dtheta, dt, spec.gyro, realization.gyro, rng, bias_rotation),
+            _triad_errors(dv, dt, spec.accel, realization.accel, rng, bias_rotation))
 
 
 # Paper presets: exactly the terms each paper states (SPEC section 4; noise per section 2:

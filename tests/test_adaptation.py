@@ -141,3 +141,44 @@ def test_missing_measurement_keeps_the_innovation_statistics():
     third = step(policy, np.array([[1.0], [1.0]]), np.array([[True], [True]]))
     C2 = (0.95 * 9.0 + 1.0) / 1.95
     np.testing.assert_allclose(third, (C2 - 0.6) / 2.0)
+
+
+def test_measurement_fading_factors_oracles():
+    """ALGORITHMS 2.10-2.11: consistent innovations leave R alone; an axis whose
+    innovation variance exceeds H J H^T by kappa^2 R (along E, N, U) gets R scaled by
+    kappa^2 along that axis only; P_pred is never faded."""
+    from estimators.adaptation import MeasurementAxisFading, MeasurementFadingFactor
+
+    rng = np.random.default_rng(7)
+    n, m, kappa = 6, 3, 2.0
+    PP, Qm = random_spd(rng, 1, n), 0.1 * random_spd(rng, 1, n)
+    Hm = np.hstack([np.eye(m), np.zeros((m, n - m))])[None]
+    Rm = np.diag([0.1, 0.2, 0.3])[None]
+    U = rot_z(0.4)[None] @ np.array([[[1.0, 0, 0], [0, np.cos(0.3), -np.sin(0.3)],
+                                      [0, np.sin(0.3), np.cos(0.3)]]])
+    J = PP + Qm
+    HJH = Hm @ J @ np.swapaxes(Hm, -1, -2)
+    Ut = np.swapaxes(U, -1, -2)
+    for inflate in (None, 1):
+        C = HJH + Rm
+        if inflate is not None:  # add (kappa^2 - 1) R^n_jj along local axis j
+            e_j = Ut[:, :, inflate]
+            R_n = U @ Rm @ Ut
+            C = C + (kappa ** 2 - 1) * R_n[0, inflate, inflate] * e_j[..., :, None] * e_j[..., None, :]
+        policy = MeasurementAxisFading()
+        policy.innovation_covariance = lambda e, valid, C=C: C
+        ctx = AdaptationContext(innovation=np.zeros((1, m)), valid=np.ones((1, m), bool),
+                                S=C, P_xz=J @ np.swapaxes(Hm, -1, -2), PhiPPhi=PP, Q=Qm,
+                                R=Rm, H=Hm, axes=U)
+        adj = policy.adapt(ctx)
+        assert adj.P_pred is None
+        expected = np.ones(3) if inflate is None else np.array([1.0, kappa ** 2, 1.0])
+        np.testing.assert_allclose(adj.factors[0], expected, rtol=1e-10)
+        R_n, Rk_n = U @ Rm @ Ut, U @ adj.R @ Ut
+        scale = np.sqrt(expected)
+        np.testing.assert_allclose(Rk_n[0], scale[:, None] * R_n[0] * scale[None, :],
+                                   rtol=1e-10, atol=1e-14)
+    # Single factor on R, by hand: C_1 = 9, H J H^T = 2.1, tr R = 0.5 -> 13.8.
+    P, lam = adapt(MeasurementFadingFactor(), PhiPPhi, Q, H, R, e)
+    assert lam[0, 0] == pytest.approx((9.0 - 2.1) / 0.5)
+    np.testing.assert_allclose(P, PhiPPhi + Q)
