@@ -232,12 +232,14 @@ class GaussianFilter:
 @dataclass(frozen=True)
 class FilterEntry:
     """A named filter of the catalogue: rule and adaptation factories and its source.
-    fading: the adaptation takes the fading-factor options (rho, floor, cap)."""
+    fading: the adaptation takes the fading-factor options (rho, floor, cap); model: a
+    model variant the experiment must build for it ("" = the experiment's model)."""
 
     rule: Callable[[], IntegrationRule]
     adaptation: Callable[..., AdaptationPolicy]
     description: str
     fading: bool = False
+    model: str = ""
 
 
 def _local_level(policy):
@@ -266,6 +268,9 @@ FILTERS: dict[str, FilterEntry] = {
     "imakf-r": FilterEntry(LinearizationRule, MeasurementAxisFading,
                            "IMAKF on R: the same as makf-r (fading Q makes no difference "
                            "when R is scaled)", True),
+    "kf-sway": FilterEntry(LinearizationRule, NoAdaptation,
+                           "KF with the sway velocity as narrow-band states per local axis "
+                           "(ALGORITHMS 2.12-2.13; beyond paper 003)", model="sway-aware"),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),

@@ -199,3 +199,77 @@ def run_fine_alignment(filt: GaussianFilter, inputs: FineInputs, C_s_i_start: np
                        ) -> FineResult:
     """Run one filter over all epochs for a batch (see InertialFineModel)."""
     return run_alignment(filt, InertialFineModel(inputs, C_s_i_start, tuning, lat, h))
+
+
+@dataclass(frozen=True)
+class SwaySpectrum:
+    """The linear sway of the sway centre as narrow-band noise per local axis E, N, U
+    (ALGORITHMS 2.12): period (s) and sigma (m/s) of each axis's velocity, damping ratio
+    zeta of the shaping oscillators."""
+
+    period: tuple[float, float, float]
+    sigma: tuple[float, float, float]
+    damping: float = 0.02
+
+
+SWAY = slice(12, 18)
+LAYOUT_SWAY = StateLayout({**LAYOUT.blocks, "sway": SWAY})
+_PICK_V = np.zeros((3, 6))
+_PICK_V[np.arange(3), 2 * np.arange(3)] = 1.0   # v_j of each oscillator [v_j, u_j]
+
+
+class SwayAwareInertialModel(InertialFineModel):
+    """The 12-state model augmented with the sway velocity as three narrow-band states
+    pairs (ALGORITHMS 2.12-2.13; beyond paper 003): per local axis j, x_j = [v_j, u_j],
+    x_j,k+1 = exp(-zeta w_j T) Rot(w_j T) x_j,k + w, stationary std(v_j) = sigma_j. The
+    measurement sees dV^i + C_n^i(t) v_D(t) - C_n^i(t1) v_D(t1); the constant second term
+    is absorbed into dV's initial covariance (anti-correlated with the oscillators' start).
+    R is then the sensor-level (calm-sea) noise of ``tuning``."""
+
+    layout = LAYOUT_SWAY
+
+    def __init__(self, inputs: FineInputs, C_s_i_start: np.ndarray, tuning: FineTuning,
+                 lat: np.ndarray | float, h: np.ndarray | float, sway: SwaySpectrum) -> None:
+        super().__init__(inputs, C_s_i_start, tuning, lat, h)
+        self.sway = sway
+        T = tuning.step
+        w = 2 * np.pi / np.asarray(sway.period, dtype=float)
+        decay = np.exp(-sway.damping * w * T)
+        c, s = np.cos(w * T), np.sin(w * T)
+        self._A = np.zeros((6, 6))
+        self._Q_sway = np.zeros((6, 6))
+        sigma2 = np.square(sway.sigma)
+        for j in range(3):
+            block = slice(2 * j, 2 * j + 2)
+            self._A[block, block] = decay[j] * np.array([[c[j], s[j]], [-s[j], c[j]]])
+            self._Q_sway[block, block] = sigma2[j] * (1.0 - decay[j] ** 2) * np.eye(2)
+        self._P_sway = np.diag(np.repeat(sigma2, 2))
+
+    def initial(self):
+        x12, P12 = super().initial()
+        B = self.batch
+        P = np.zeros((B, 18, 18))
+        P[:, :12, :12] = P12
+        C = self._C_n_i[:, 0]                                  # C_n^i(t1)
+        sigma2 = np.square(self.sway.sigma)
+        P[:, V, V] += C @ (sigma2[:, None] * np.swapaxes(C, -1, -2))
+        P[:, SWAY, SWAY] = self._P_sway
+        P[:, V, SWAY] = -(C * sigma2[None, None, :]) @ _PICK_V
+        P[:, SWAY, V] = np.swapaxes(P[:, V, SWAY], -1, -2)
+        return np.zeros((B, 18)), P
+
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        base = super().transition(k, q_scale)
+        B = self.batch
+        Phi = np.zeros((B, 18, 18))
+        Q = np.zeros((B, 18, 18))
+        Phi[:, :12, :12], Q[:, :12, :12] = base.matrix, base.noise
+        Phi[:, SWAY, SWAY], Q[:, SWAY, SWAY] = self._A, self._Q_sway
+        return Transition(noise=Q, matrix=Phi)
+
+    def observation(self, k, r_scale=1.0):
+        base = super().observation(k, r_scale)
+        H = np.zeros((self.batch, 3, 18))
+        H[:, :, :12] = base.matrix
+        H[:, :, SWAY] = self._C_n_i[:, k + 1] @ _PICK_V
+        return Observation(noise=base.noise, matrix=H, z=base.z, t=base.t, axes=base.axes)

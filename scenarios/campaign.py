@@ -115,9 +115,14 @@ class Experiment(ABC):
         """Starting misalignment phi E, N, U (rad) of the fine stage per start name,
         common (3,) or per episode (B, 3)."""
 
+    model_variants: tuple[str, ...] = ()
+    """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
+
     @abstractmethod
-    def model(self, episodes: list[PreparedEpisode], start_error: np.ndarray) -> FilterModel:
-        """The fine-alignment model for a batch of episodes from a starting error."""
+    def model(self, episodes: list[PreparedEpisode], start_error: np.ndarray,
+              variant: str = "") -> FilterModel:
+        """The fine-alignment model (or a variant) for a batch of episodes from a
+        starting error."""
 
     def episode_start(self, episode: PreparedEpisode) -> np.ndarray:
         """The default starting misalignment (3,) rad of one episode (the env's)."""
@@ -162,9 +167,13 @@ class Experiment(ABC):
         than ``rules.MAX_POINTS`` for this model's dimension."""
         for name in filters:
             try:
-                rule = filter_entry(name).rule()
+                entry = filter_entry(name)
             except UnknownFilter as exc:
                 raise ConfigError(str(exc)) from None
+            if entry.model and entry.model not in self.model_variants:
+                raise ConfigError(f"filter {name!r} needs the {entry.model} model, which "
+                                  f"paper{self.paper} does not have")
+            rule = entry.rule()
             count = rule.point_count(self.state_count)
             if count > MAX_POINTS:
                 raise ConfigError(f"filter {name!r} needs {count:.3g} points per episode for "
@@ -233,10 +242,12 @@ def run_filter(name: str, start: str, start_error: np.ndarray,
     per_episode = np.broadcast_to(start_error, (len(episodes), 3))
     chunks = [c for c in np.array_split(np.arange(len(episodes)), max(1, threads)) if c.size]
 
+    variant = filter_entry(name).model
+
     def run_chunk(idx: np.ndarray) -> FineResult:
         filt = make_filter(name, **experiment.filter_options())
         return run_alignment(filt, experiment.model([episodes[i] for i in idx],
-                                                    per_episode[idx]))
+                                                    per_episode[idx], variant))
 
     if len(chunks) == 1:
         result = run_chunk(chunks[0])

@@ -77,6 +77,7 @@ class AlignmentEnv(gym.Env):
         self.experiment = experiment_for(scenario, fine_duration=episode_length,
                                          filter_step=epoch_length)
         self.config = self.experiment.scenario_config()
+        self.experiment.check_filters([estimator])
         factors = {"gyro_noise": 1.0, "accel_noise": 1.0, "measurement": 1.0,
                    **(mistuning or {})}
         unknown = set(factors) - {"gyro_noise", "accel_noise", "measurement"}
@@ -137,8 +138,8 @@ class AlignmentEnv(gym.Env):
             raise ConfigError("start_error must be 3 finite angles in rad (E, N, U)")
         filt = make_filter(self.estimator, **self.experiment.filter_options())
         self._filter = filt
-        self._run = AlignmentRun(filt, self.experiment.model([self._episode],
-                                                             self._start_error))
+        self._run = AlignmentRun(filt, self.experiment.model(
+            [self._episode], self._start_error, filter_entry(self.estimator).model))
         self._observed = self.experiment.observed_states(self._run.model.layout)
         self._episode_seed = episode_seed
         self._world = None

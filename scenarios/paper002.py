@@ -116,7 +116,7 @@ class Paper002Experiment(Experiment):
     def start_errors(self, episodes):
         return {START: np.stack([e.start_error for e in episodes])}
 
-    def model(self, episodes, start_error):
+    def model(self, episodes, start_error, variant=""):
         start_error = np.broadcast_to(np.asarray(start_error, dtype=float),
                                       (len(episodes), 3))
         if any(not np.isclose(e.integrals.step, self.filter_step) for e in episodes):

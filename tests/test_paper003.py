@@ -216,3 +216,18 @@ def test_bench_paper_setup_table(tmp_path):
     assert set(summary["fine"]["makf-r"]) == {"mean", "max"}
     # makf-r and imakf-r are the same filter when R is scaled (ALGORITHMS 2.3).
     assert summary["fine"]["makf-r"] == summary["fine"]["imakf-r"]
+
+
+def test_sway_aware_kf_is_consistent_under_sway():
+    """kf-sway (the sway velocity as narrow-band states, calm-sea R) under the paper's
+    sway, 20 episodes: the mean final NEES of the 9 attitude and bias states lies in its
+    95 % chi-square band, and its heading error is no worse than the KF's."""
+    exp = Paper003Experiment()
+    n = 20
+    result = run_campaign(episodes=n, seed=11, filters=["kf", "kf-sway"], workers=2,
+                          progress=False, experiment=exp)
+    runs = {r.filter: r for r in result.runs if r.start == "mean"}
+    low, high = chi2.ppf([0.025, 0.975], 9 * n) / n
+    assert low < runs["kf-sway"].nees[:, -1].mean() < high
+    rms = {name: np.sqrt(np.mean(r.error_n[:, -1, 2] ** 2)) for name, r in runs.items()}
+    assert rms["kf-sway"] <= rms["kf"]
