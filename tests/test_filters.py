@@ -132,7 +132,7 @@ def test_nan_in_the_process_is_flagged():
 def test_registry_and_unknown_names():
     assert {"kf", "ekf", "sakf", "makf", "imakf", "ukf", "ckf"} <= set(FILTERS)
     assert make_filter("sghkf-4").rule.level == 4 and make_filter("ghkf-3").rule.order == 3
-    with pytest.raises(UnknownFilter, match="known filters: ckf, ekf, imakf, imakf-n, kf"):
+    with pytest.raises(UnknownFilter, match="known filters: ckf, ekf, imakf, imakf-n, imakf-r"):
         make_filter("ukf-typo")
     with pytest.raises(UnknownFilter, match="sparse-grid level must be an integer in"):
         make_filter("sghkf-0")
