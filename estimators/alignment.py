@@ -18,7 +18,8 @@ class FineResult:
 
     t (K+1,) s since t0; C_s_n (B, K+1, 3, 3) estimated attitude of the IMU frame;
     P (B, K+1, n, n) in the state's frames; sigma_n (B, K+1, 3) rad, 1-sigma
-    misalignment along E, N, U; x (B, K+1, n) estimate before feedback; factors
+    misalignment along E, N, U (Euler-error sigmas for Euler models); x (B, K+1, n)
+    the state after feedback (with C_s_n and P: one consistent estimate); factors
     (B, K, k); diverged (B,), diverged_time (B,) s, diverged_reason; repairs (B,)
     predicted covariances repaired; seconds_per_epoch: wall time per epoch for the batch.
     """
@@ -87,8 +88,8 @@ class AlignmentRun:
             self.factors = grown
         self.factors[:, k] = np.nan
         self.factors[:, k, :width] = filt.factors
-        self.x[:, k + 1] = filt.x
         filt.x, filt.P = model.feedback(filt.x, filt.P, filt.live)
+        self.x[:, k + 1] = filt.x
         self.k += 1
         self._record()
         self.compute_seconds += time.perf_counter() - start

@@ -41,7 +41,7 @@ SWAY_AWARE_R = 5e-4
 the sway is modelled (lever-arm rates from gyros and encoders, accelerometer noise)."""
 WAVE_MEASUREMENT_SIGMA = (0.03, 0.03, 0.2)
 """m/s along E, N, U for the wave-driven ship (not yet derived from the sea state)."""
-PAPER_SETUP = {"scenario": "ship-sway-rotary-paper",
+PAPER_SETUP = {"setup": "paper", "scenario": "ship-sway-rotary-paper",
                "measurement_sigma": (SWAY_R_FLOOR,) * 3,
                "default_filters": ("kf", "sakf-r", "makf-r", "imakf-r")}
 """``--setup paper``: the paper's results reproduced for a stated reason (README): biases
@@ -83,7 +83,8 @@ class Paper003Experiment(Experiment):
     Times in s; attitude_sigma (deg) is the filter's initial misalignment sigma along
     E, N, U (assumed, ALGORITHMS 2.2); measurement_sigma (m/s) along E, N, U: None
     derives it from the scenario's sway (``sway_measurement_sigma``); heading_threshold
-    in arcmin; default_filters: the campaign's filter list.
+    in arcmin; default_filters: the campaign's filter list; setup: "default" or "paper"
+    (``PAPER_SETUP``).
     """
 
     scenario: str = "ship-sway-rotary"
@@ -99,6 +100,7 @@ class Paper003Experiment(Experiment):
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 5.0
     default_filters: tuple[str, ...] = ("kf", "sakf", "makf", "imakf")
+    setup: str = "default"
 
     paper = "003"
     worlds = ("ship-prescribed", "ship-waves")
@@ -135,7 +137,11 @@ class Paper003Experiment(Experiment):
         coarse = np.stack([e.coarse_error for e in episodes])
         return {"mean": coarse.mean(0), "max": signed_extreme(coarse, np.argmax)}
 
-    model_variants = ("sway-aware",)
+    @property
+    def model_variants(self) -> tuple[str, ...]:
+        """"sway-aware" needs the prescribed sway's periods and amplitudes."""
+        return (("sway-aware",) if self.scenario_config().world == "ship-prescribed"
+                else ())
 
     def model(self, episodes, start_error, variant="", tuning: FineTuning | None = None):
         """The 12-state model, or ("sway-aware") the 18-state model with the scenario's
@@ -144,7 +150,7 @@ class Paper003Experiment(Experiment):
         config = self.scenario_config()
         if tuning is None:
             tuning = self.tuning(config)
-            if variant == "sway-aware" and self.measurement_sigma is None:
+            if variant == "sway-aware":  # the sway is modelled: sensor-level R
                 tuning = replace(tuning, measurement_sigma=(SWAY_AWARE_R,) * 3)
         args = (inputs, start_attitude(episodes, start_error), tuning,
                 np.array([e.lat for e in episodes]), np.array([e.h for e in episodes]))
@@ -153,6 +159,11 @@ class Paper003Experiment(Experiment):
         if variant == "sway-aware":
             return SwayAwareInertialModel(*args, sway=sway_spectrum(config))
         raise ValueError(f"paper003 has no model variant {variant!r}")
+
+    def check(self, config):
+        if self.setup == "paper" and config.imu_bias_frame != "hull":
+            raise ConfigError(f"--setup paper needs a scenario with [imu] bias_frame = "
+                              f"\"hull\"; {config.name!r} has {config.imu_bias_frame!r}")
 
     def filter_options(self):
         return {"rho": self.rho}
@@ -164,11 +175,16 @@ class Paper003Experiment(Experiment):
         return layout.indices("misalignment", "gyro_bias", "accel_bias")
 
     def nees(self, result, episodes, error_n):
-        """NEES over attitude and biases, in the filter's frames (phi in i)."""
+        """NEES over attitude and biases, in the filter's frames (phi in i); attitude only
+        when the scenario's biases are fixed in the hull frame (the model's sensor-frame
+        bias states then have no true value)."""
         lat = np.array([e.lat for e in episodes])
         C_ni = C_n_i(result.t[None], lat[:, None])
+        phi_i = np.einsum("bkij,bkj->bki", C_ni, error_n)
+        if self.scenario_config().imu_bias_frame == "hull":
+            return nees(phi_i, result.P[:, :, PHI, PHI])
         err = np.concatenate([
-            np.einsum("bkij,bkj->bki", C_ni, error_n),
+            phi_i,
             np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
             np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
         sub = np.r_[PHI, EPS, NABLA]

@@ -179,6 +179,10 @@ def test_measurement_fading_factors_oracles():
         np.testing.assert_allclose(Rk_n[0], scale[:, None] * R_n[0] * scale[None, :],
                                    rtol=1e-10, atol=1e-14)
     # Single factor on R, by hand: C_1 = 9, H J H^T = 2.1, tr R = 0.5 -> 13.8.
-    P, lam = adapt(MeasurementFadingFactor(), PhiPPhi, Q, H, R, e)
-    assert lam[0, 0] == pytest.approx((9.0 - 2.1) / 0.5)
-    np.testing.assert_allclose(P, PhiPPhi + Q)
+    policy = MeasurementFadingFactor()
+    ctx = AdaptationContext(innovation=e, valid=np.isfinite(e), S=R, P_xz=PhiPPhi[:, :, :1],
+                            PhiPPhi=PhiPPhi, Q=Q, R=R, H=H)
+    adj = policy.adapt(ctx)
+    assert adj.factors[0, 0] == pytest.approx((9.0 - 2.1) / 0.5)
+    assert adj.P_pred is None
+    np.testing.assert_allclose(adj.R, adj.factors[0, 0] * R)

@@ -166,15 +166,18 @@ def test_resume_refuses_another_experiment(tmp_path):
 def test_hull_frame_biases_are_not_modulated():
     """[imu] bias_frame = "hull": the sensed bias, turned back into the hull frame, is the
     drawn constant; in the sensor frame it averages out (the gimbal modulates it)."""
-    from models.attitude import rot_x, rot_z
+    from models.attitude import dcm_to_rotvec, quat_to_dcm, rotvec_to_dcm
     from scenarios.config import load_scenario
     from scenarios.simulate import simulate
 
     config = load_scenario("ship-sway-rotary-paper").with_options(duration=120.0)
     erroneous, ideal = simulate(config, seed=4), simulate(config, seed=4, ideal=True)
     dt = config.imu_interval
-    angles = 0.5 * (ideal.truth.gimbal_angles[:-1] + ideal.truth.gimbal_angles[1:])
-    C_s_b = rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
+    # C_s^b from the truth's attitudes (not the gimbal formula the code uses), mid-interval.
+    C_b_n, C_s_n = quat_to_dcm(ideal.truth.q_b_n), quat_to_dcm(ideal.truth.q_s_n)
+    C_s_b_k = np.swapaxes(C_b_n, -1, -2) @ C_s_n
+    C_s_b = rotvec_to_dcm(0.5 * dcm_to_rotvec(C_s_b_k[1:] @ np.swapaxes(C_s_b_k[:-1], -1,
+                                                                      -2))) @ C_s_b_k[:-1]
     for name, sensed in (("gyro", erroneous.dtheta - ideal.dtheta),
                          ("accel", erroneous.dv - ideal.dv)):
         bias = getattr(erroneous.imu_realization, name).bias
@@ -184,7 +187,7 @@ def test_hull_frame_biases_are_not_modulated():
         assert np.abs(in_sensor).max() < 0.2 * np.abs(bias).max()
 
 
-@pytest.mark.parametrize("name", ["kf", "makf-r"])
+@pytest.mark.parametrize("name", ["kf", "sakf-r", "makf-r"])
 def test_paper_setup_converges_to_the_unmodulated_bias_floors(name):
     """The paper setup in a calm sea (biases fixed in the hull frame, calm-sea R): level
     and heading settle on accelerometer bias / g and -east drift / (Omega cos L) +
@@ -214,8 +217,9 @@ def test_bench_paper_setup_table(tmp_path):
     summary = json.loads(path.read_text())
     assert set(summary["fine"]) == {"kf", "sakf-r", "makf-r", "imakf-r"}
     assert set(summary["fine"]["makf-r"]) == {"mean", "max"}
-    # makf-r and imakf-r are the same filter when R is scaled (ALGORITHMS 2.3).
-    assert summary["fine"]["makf-r"] == summary["fine"]["imakf-r"]
+    # Sensor-frame biases are not the paper's setup: refused before any simulation.
+    assert main(["bench", "paper003", "--setup", "paper", "--scenario", "ship-sway-rotary",
+                 "--episodes", "1"]) == 2
 
 
 def test_sway_aware_kf_is_consistent_under_sway():
@@ -231,3 +235,27 @@ def test_sway_aware_kf_is_consistent_under_sway():
     assert low < runs["kf-sway"].nees[:, -1].mean() < high
     rms = {name: np.sqrt(np.mean(r.error_n[:, -1, 2] ** 2)) for name, r in runs.items()}
     assert rms["kf-sway"] <= rms["kf"]
+
+
+def test_sway_aware_model_oracles(experiment):
+    """The 18-state model: P0 positive definite; at t1 the measurement sees exactly the
+    12-state model's velocity-integral uncertainty (the constant sway term cancels the
+    oscillators' start); the oscillators' covariance is stationary (A P A^T + Q = P)."""
+    from estimators.inertial_fine import SWAY
+
+    config = experiment.scenario_config()
+    episode = prepare_episode(replace(experiment, fine_duration=20.0), 5, config=config)
+    start = np.array([0.01, -0.01, 0.05])
+    exp = replace(experiment, fine_duration=20.0)
+    sway, plain = exp.model([episode], start, "sway-aware"), exp.model([episode], start)
+    _, P0 = sway.initial()
+    _, P0_plain = plain.initial()
+    assert np.all(np.linalg.eigvalsh(P0[0]) > 0)
+    H0 = np.zeros((3, 18))
+    H0[:, :3] = np.eye(3)
+    H0[:, SWAY] = sway._C_n_i[0, 0] @ np.eye(3, 6, k=0)[:, [0, 3, 1, 4, 2, 5]]
+    np.testing.assert_allclose(H0 @ P0[0] @ H0.T, P0_plain[0, :3, :3], atol=1e-15)
+    step = sway.transition(0)
+    A, Q = step.matrix[0, SWAY, SWAY], step.noise[0, SWAY, SWAY]
+    P_s = P0[0, SWAY, SWAY]
+    np.testing.assert_allclose(A @ P_s @ A.T + Q, P_s, atol=1e-15)
