@@ -172,7 +172,8 @@ class Experiment(ABC):
                 raise ConfigError(str(exc)) from None
             if entry.model and entry.model not in self.model_variants:
                 raise ConfigError(f"filter {name!r} needs the {entry.model} model, which "
-                                  f"paper{self.paper} does not have")
+                                  f"paper{self.paper} does not build for scenario "
+                                  f"{self.scenario!r}")
             rule = entry.rule()
             count = rule.point_count(self.state_count)
             if count > MAX_POINTS:
