@@ -259,3 +259,12 @@ def test_sway_aware_model_oracles(experiment):
     A, Q = step.matrix[0, SWAY, SWAY], step.noise[0, SWAY, SWAY]
     P_s = P0[0, SWAY, SWAY]
     np.testing.assert_allclose(A @ P_s @ A.T + Q, P_s, atol=1e-15)
+
+
+def test_kf_sway_refused_without_a_prescribed_sway(capsys):
+    """kf-sway needs the prescribed sway's periods: on the wave-driven ship it is refused
+    in one line before any episode is simulated."""
+    assert main(["bench", "paper003", "--scenario", "ship-waves-rotary", "--filters",
+                 "kf-sway", "--episodes", "1", "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs the sway-aware model" in err[0]
