@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.model import FilterModel, Observation, StateLayout, Transition
+from estimators.model import (FilterModel, Observation, StateLayout, Transition,
+                              stack_episodes)
 from estimators.strapdown import compensate
 from models.attitude import (dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
                              quat_rotate, quat_to_dcm, rotvec_to_quat)
@@ -247,24 +248,12 @@ def static_base_integrals(dtheta: np.ndarray, dv: np.ndarray, dt: float, lat: fl
 
 def stack_integrals(parts: list[StaticBaseIntegrals]) -> StaticBaseIntegrals:
     """One batch from several episodes' integrals (same time grid, else ValueError)."""
-    for other in parts[1:]:
-        if not np.array_equal(other.t, parts[0].t):
-            raise ValueError("episodes must share the filter time grid")
-    return StaticBaseIntegrals(t=parts[0].t, t_mid=parts[0].t_mid, **{
-        name: np.concatenate([getattr(p, name) for p in parts])
-        for name in ("K_axis", "Q", "Q_mid", "U", "lat", "h")})
+    return stack_episodes(parts, ("t", "t_mid"))
 
 
 def stack_ins_inputs(inputs: list[StaticInsInputs]) -> StaticInsInputs:
     """One batch from several episodes' INS inputs (same time grid, else ValueError)."""
-    if not inputs:
-        raise ValueError("no inputs to stack")
-    for other in inputs[1:]:
-        if not np.array_equal(other.t, inputs[0].t):
-            raise ValueError("episodes must share the filter time grid")
-    return StaticInsInputs(t=inputs[0].t, **{
-        name: np.concatenate([getattr(i, name) for i in inputs])
-        for name in ("C_b_p", "C_b_p_mid", "f_p", "v_EN", "lat", "h")})
+    return stack_episodes(inputs)
 
 
 # --------------------------------------------------------------------------------------

@@ -13,13 +13,11 @@ from typing import Callable
 import numpy as np
 
 from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
-                                   ImprovedMultipleFadingFactors, InnovationFading,
-                                   MeasurementAxisFading, MeasurementFadingFactor,
+                                   ImprovedMultipleFadingFactors, MeasurementAxisFading, MeasurementFadingFactor,
                                    MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
 from estimators.model import Observation, Transition, wrap_angle
 from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
-                              LinearizationRule, ReducedGaussHermiteRule,
-                              SparseGridGaussHermiteRule, UnscentedRule)
+                              LinearizationRule, SparseGridGaussHermiteRule, UnscentedRule)
 
 
 def _cholesky_ok(A: np.ndarray) -> np.ndarray:

@@ -21,7 +21,8 @@ import numpy as np
 
 from estimators.alignment import FineResult, run_alignment
 from estimators.filters import GaussianFilter
-from estimators.model import FilterModel, Observation, StateLayout, Transition
+from estimators.model import (FilterModel, Observation, StateLayout, Transition,
+                              stack_episodes)
 from estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
 from models.attitude import rotvec_to_dcm, skew
@@ -105,11 +106,7 @@ def fine_inputs(integrals: BodyFrameIntegrals, t1: float, duration: float,
 
 def stack_inputs(inputs: list[FineInputs]) -> FineInputs:
     """One batch from several episodes' inputs (same time grid)."""
-    for other in inputs[1:]:
-        if not np.array_equal(other.t, inputs[0].t):
-            raise ValueError("episodes must share the filter time grid")
-    return FineInputs(t=inputs[0].t, **{name: np.concatenate([getattr(i, name) for i in inputs])
-                                        for name in ("C_s_s0", "dW", "Psi", "Psi2")})
+    return stack_episodes(inputs)
 
 
 class InertialFineModel(FilterModel):

@@ -20,12 +20,28 @@ correctly.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
+from dataclasses import dataclass, fields
+from typing import Callable, TypeVar
 
 import numpy as np
 
 Array = np.ndarray
+Batch = TypeVar("Batch")
+
+
+def stack_episodes(parts: list[Batch], shared: tuple[str, ...] = ("t",)) -> Batch:
+    """One batch from several episodes' batched dataclasses (leading axis B): the fields
+    in ``shared`` (time grids) must be equal and are taken once, the others are
+    concatenated along the batch axis; ValueError otherwise."""
+    if not parts:
+        raise ValueError("no episodes to stack")
+    for other in parts[1:]:
+        if not all(np.array_equal(getattr(other, n), getattr(parts[0], n)) for n in shared):
+            raise ValueError("episodes must share the filter time grid")
+    return type(parts[0])(**{
+        f.name: (getattr(parts[0], f.name) if f.name in shared
+                 else np.concatenate([getattr(p, f.name) for p in parts]))
+        for f in fields(parts[0])})
 
 
 def wrap_angle(a: Array) -> Array:

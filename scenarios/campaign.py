@@ -86,6 +86,10 @@ class Experiment(ABC):
     """The MuJoCo worlds the experiment's pipeline runs on."""
     filter_keys: tuple[str, ...] = ()
     """Keys the experiment accepts in a scenario's [filter] table."""
+    model_variants: tuple[str, ...] = ()
+    """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
+    state_count: int = 0
+    """Dimension of the experiment's fine-alignment state."""
 
     def scenario_config(self) -> ScenarioConfig:
         """The scenario (a shipped name or a .toml path), with the experiment's
@@ -114,9 +118,6 @@ class Experiment(ABC):
     def start_errors(self, episodes: list[PreparedEpisode]) -> dict[str, np.ndarray]:
         """Starting misalignment phi E, N, U (rad) of the fine stage per start name,
         common (3,) or per episode (B, 3)."""
-
-    model_variants: tuple[str, ...] = ()
-    """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
 
     @abstractmethod
     def model(self, episodes: list[PreparedEpisode], start_error: np.ndarray,
@@ -158,9 +159,6 @@ class Experiment(ABC):
     def check(self, config: ScenarioConfig) -> None:
         """One-line ConfigError for settings of the scenario the experiment cannot use
         (called before any episode is simulated)."""
-
-    state_count: int = 0
-    """Dimension of the experiment's fine-alignment state."""
 
     def check_filters(self, filters: list[str]) -> None:
         """One-line ConfigError for an unknown filter, or one whose rule needs more points
@@ -234,11 +232,12 @@ def analyse_run(name: str, start: str, result: FineResult, episodes: list[Prepar
 
 def run_filter(name: str, start: str, start_error: np.ndarray,
                episodes: list[PreparedEpisode], experiment: Experiment,
-               threads: int = 1) -> FilterRun:
+               threads: int = 1, **model_options: Any) -> FilterRun:
     """One filter on all episodes from a starting error (rad; common (3,) or per episode
-    (B, 3)). With threads > 1 the batch is split into that many chunks run in threads
-    (NumPy releases the GIL in its array loops; the episodes are independent, so the
-    result is the same as one batch)."""
+    (B, 3)); model_options go to ``experiment.model`` (e.g. paper 003's tuning). With
+    threads > 1 the batch is split into that many chunks run in threads (NumPy releases
+    the GIL in its array loops; the episodes are independent, so the result is the same
+    as one batch)."""
     start_error = np.asarray(start_error, dtype=float)
     per_episode = np.broadcast_to(start_error, (len(episodes), 3))
     chunks = [c for c in np.array_split(np.arange(len(episodes)), max(1, threads)) if c.size]
@@ -248,7 +247,8 @@ def run_filter(name: str, start: str, start_error: np.ndarray,
     def run_chunk(idx: np.ndarray) -> FineResult:
         filt = make_filter(name, **experiment.filter_options())
         return run_alignment(filt, experiment.model([episodes[i] for i in idx],
-                                                    per_episode[idx], variant))
+                                                    per_episode[idx], variant,
+                                                    **model_options))
 
     if len(chunks) == 1:
         result = run_chunk(chunks[0])

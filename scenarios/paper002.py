@@ -6,8 +6,10 @@ and the tensor-product GH filter.
 As in the paper, the analytic coarse alignment is skipped: each episode's INS starts
 from the true attitude turned by the Euler error [level_E, level_N, 58.5 deg] (the level
 errors drawn per episode, 1 deg 1-sigma, *assumed*: the paper's P0 of 45 deg describes
-the filter's prior, not the real level error left after levelling) and runs open loop;
-the filter estimates its Euler error. P0, Q and R are the paper's (Q taken as PSDs).
+the filter's prior, not the real level error left after levelling); the filter estimates
+its Euler error, open loop until its heading sigma is below ``feedback_sigma_deg``, then
+fed back into its own INS after every update. P0, Q and R are the paper's (Q taken as
+PSDs).
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ from estimators.filters import make_filter
 from estimators.metrics import nees
 from estimators.model import wrap_angle
 from models.attitude import quat_to_dcm
-from models.units import arcmin, deg, deg_per_h
+from models.units import deg, deg_per_h
 from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode,
                                 fine_summary, format_fine_table)
 from scenarios.config import ConfigError, ScenarioConfig

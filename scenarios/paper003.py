@@ -13,10 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.alignment import FineResult
 from estimators.inertial_fine import (EPS, NABLA, PHI, FineInputs, FineTuning,
                                       InertialFineModel, SwayAwareInertialModel,
-                                      SwaySpectrum, fine_inputs)
+                                      SwaySpectrum, fine_inputs, stack_inputs)
 from estimators.inertial_frame import (C_n_i, attitude_from_inertial, body_frame_integrals,
                                        coarse_alignment_ib0)
 from estimators.metrics import misalignment, nees
@@ -24,7 +23,7 @@ from models.attitude import quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
 from models.units import arcmin, deg
 from scenarios import campaign
 from scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
-                                episode_seeds, fine_summary)
+                                fine_summary)
 from scenarios.config import ConfigError, ScenarioConfig
 from scenarios.simulate import simulate
 from sensors.imu import ImuTuning
@@ -52,6 +51,13 @@ PAPER_SETUP = {"setup": "paper", "scenario": "ship-sway-rotary-paper",
 constant in the hull frame (no modulation), a calm-sea R, fading factors on R."""
 
 
+def sway_peak_velocity(motion) -> np.ndarray:
+    """Peak linear sway velocity A_j 2 pi / T_j (3,) m/s per local axis E, N, U of the
+    prescribed sway (``models.ship.ShipSwayMotion``)."""
+    return (np.asarray(motion.linear_amplitude) * 2 * np.pi
+            / np.asarray(motion.linear_period))
+
+
 def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
     """The prescribed sway per local axis: its periods, sigma_j = A_j w_j / sqrt(2) (the
     std of a random-phase sinusoid's velocity, at least 0.1 mm/s to keep P0 positive
@@ -62,21 +68,18 @@ def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
     if config.world != "ship-prescribed":
         raise ConfigError("kf-sway needs the prescribed sway's periods and amplitudes; "
                           f"scenario {config.name!r} has world = {config.world!r}")
-    motion = config.motion
-    w = 2 * np.pi / np.asarray(motion.linear_period)
-    sigma = np.maximum(np.asarray(motion.linear_amplitude) * w / np.sqrt(2.0), 1e-4)
-    return SwaySpectrum(period=tuple(motion.linear_period), sigma=tuple(sigma), damping=0.0)
+    sigma = np.maximum(sway_peak_velocity(config.motion) / np.sqrt(2.0), 1e-4)
+    return SwaySpectrum(period=tuple(config.motion.linear_period), sigma=tuple(sigma),
+                        damping=0.0)
 
 
 def sway_measurement_sigma(config: ScenarioConfig) -> tuple[float, float, float]:
     """The honest default R of the fine alignment, per local axis E, N, U (m/s):
     sigma_j = max(SWAY_R_FLOOR, SWAY_R_MARGIN x A_j x 2 pi / T_j) from the prescribed
     sway's amplitudes A_j (m) and periods T_j (s); the wave-driven ship's fixed values."""
-    motion = config.motion
     if config.world != "ship-prescribed":
         return WAVE_MEASUREMENT_SIGMA
-    peak = (np.asarray(motion.linear_amplitude) * 2 * np.pi
-            / np.asarray(motion.linear_period))
+    peak = sway_peak_velocity(config.motion)
     return tuple(float(s) for s in np.maximum(SWAY_R_FLOOR, SWAY_R_MARGIN * peak))
 
 
@@ -130,7 +133,6 @@ class Paper003Experiment(Experiment):
                           measurement_sigma=(self.measurement_sigma
                                              or sway_measurement_sigma(config)),
                           step=self.filter_step)
-
 
     def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
                         ) -> "Paper003Episode":
@@ -254,11 +256,6 @@ def prepare_episode(experiment: Paper003Experiment, seed: int,
         accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h)
 
 
-def stack_inputs(inputs: list[FineInputs]) -> FineInputs:
-    from estimators.inertial_fine import stack_inputs as stack
-    return stack(inputs)
-
-
 def signed_extreme(errors: np.ndarray, pick) -> np.ndarray:
     """Per axis, the signed error whose magnitude is picked (argmax or argmin) (3,)."""
     idx = pick(np.abs(errors), axis=0)
@@ -310,13 +307,8 @@ def run_filter(name: str, start: str, start_error: np.ndarray,
                tuning: FineTuning | None = None) -> campaign.FilterRun:
     """One filter on all episodes from a starting misalignment phi E, N, U (rad): common
     (3,) or per episode (B, 3); tuning: the experiment's unless given."""
-    from estimators.alignment import run_alignment
-    from estimators.filters import filter_entry, make_filter
-
-    filt = make_filter(name, **experiment.filter_options())
-    result = run_alignment(filt, experiment.model(episodes, start_error,
-                                                  filter_entry(name).model, tuning))
-    return campaign.analyse_run(name, start, result, episodes, experiment)
+    return campaign.run_filter(name, start, start_error, episodes, experiment,
+                               tuning=tuning)
 
 
 def run_campaign(episodes: int = 50, seed: int = 0, filters: list[str] | None = None,
