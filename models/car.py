@@ -239,6 +239,10 @@ class PurePursuit:
 class CarWorld:
     """The car and its driver in MuJoCo."""
 
+    smooth_truth = False
+    """The truth is MuJoCo's discrete motion itself (``models.world.discrete_imu``): wheel
+    contacts on a rough road change the rates within a step."""
+
     def __init__(self, params: CarParams, track: Track, profile: DriveProfile,
                  roughness_seed: int = 0, control_period: int = 25) -> None:
         self.params, self.track, self.profile = params, track, profile

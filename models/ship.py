@@ -87,12 +87,17 @@ class ShipSwayMotion(GimbalRates):
         return A * np.sin(arg), A * w * np.cos(arg), -A * w * w * np.sin(arg)
 
 
-def ship_mjcf(lever_arm_b: tuple[float, float, float]) -> str:
+def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False) -> str:
     """MJCF of the hull (body "carrier"), the double-axis gimbal and the IMU site.
 
-    Hull dimensions are visual only; the hull origin is the sway centre.
+    Hull dimensions are visual only; the hull origin is the sway centre. A floating hull
+    (``floating``) has its centre of mass there, about which a free body turns (the
+    inertia of an 18 x 90 x 8 m box of 5010 t); the prescribed hull's mass properties
+    play no part.
     """
     x, y, z = lever_arm_b
+    inertial = ('<inertial pos="0 0 0" mass="5.01e6" diaginertia="3.41e9 1.62e8 3.52e9"/>'
+                if floating else "")
     return f"""
 <mujoco model="ship-sway-rotary">
   <option timestep="0.005" integrator="implicitfast"/>
@@ -107,6 +112,7 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float]) -> str:
     <geom name="sea" type="plane" size="400 400 1" material="sea" contype="0" conaffinity="0"/>
     <body name="carrier">
       <freejoint name="hull"/>
+      {inertial}
       <geom name="hull" type="box" size="9 45 4" pos="0 0 -2" rgba=".55 .55 .6 1"
             contype="0" conaffinity="0" mass="5e6"/>
       <geom name="bridge" type="box" size="7 6 5" pos="{x:g} {y:g} {z / 2:g}" rgba=".85 .85 .9 1"

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from models.attitude import quat_to_dcm, quat_to_euler
 from models.ship import ship_mjcf
 from models.units import deg
 from models.world import DiscreteRun, GimbalRates
@@ -66,34 +65,76 @@ class WaveShipMotion(GimbalRates):
             raise ValueError(f"motion.components = {self.components} is out of range [4, 1000]")
 
 
-def jonswap_components(motion: WaveShipMotion, rng: np.random.Generator
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Amplitudes (m), angular frequencies (rad/s), wavenumbers (rad/m, deep water) and
-    random phases of the sea, from the JONSWAP spectrum (DNV-RP-C205 3.5.5) sampled at
-    jittered frequencies between 0.5 and 3 peak frequencies."""
+def jonswap_density(motion: WaveShipMotion, w: np.ndarray) -> np.ndarray:
+    """JONSWAP wave spectrum S(w) (m^2 s/rad) at angular frequencies w (rad/s),
+    DNV-RP-C205 3.5.5, from the significant wave height, peak period and gamma."""
     wp = 2 * math.pi / motion.peak_period
-    n = motion.components
-    edges = np.linspace(0.5 * wp, 3.0 * wp, n + 1)
-    w = edges[:-1] + rng.uniform(0.0, 1.0, n) * np.diff(edges)
     Hs, gamma = motion.significant_wave_height, motion.peak_enhancement
     sigma = np.where(w <= wp, 0.07, 0.09)
     pm = 5.0 / 16.0 * Hs ** 2 * wp ** 4 * w ** -5 * np.exp(-1.25 * (w / wp) ** -4)
-    S = (1 - 0.287 * math.log(gamma)) * pm * gamma ** np.exp(-0.5 * ((w - wp) / (sigma * wp)) ** 2)
-    amplitude = np.sqrt(2 * S * np.diff(edges))
+    return (1 - 0.287 * math.log(gamma)) * pm * gamma ** np.exp(
+        -0.5 * ((w - wp) / (sigma * wp)) ** 2)
+
+
+def sea_band(motion: WaveShipMotion) -> tuple[float, float]:
+    """The angular frequencies (rad/s) the synthesized sea spans: 0.5 to 3 peak
+    frequencies (~97 % of the JONSWAP energy)."""
+    wp = 2 * math.pi / motion.peak_period
+    return 0.5 * wp, 3.0 * wp
+
+
+def jonswap_components(motion: WaveShipMotion, rng: np.random.Generator
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Amplitudes (m), angular frequencies (rad/s), wavenumbers (rad/m, deep water) and
+    random phases of the sea, from the JONSWAP spectrum sampled at jittered frequencies
+    in ``sea_band``."""
+    n = motion.components
+    edges = np.linspace(*sea_band(motion), n + 1)
+    w = edges[:-1] + rng.uniform(0.0, 1.0, n) * np.diff(edges)
+    amplitude = np.sqrt(2 * jonswap_density(motion, w) * np.diff(edges))
     return amplitude, w, w ** 2 / 9.81, rng.uniform(0.0, 2 * math.pi, n)
+
+
+def heave_response(motion: WaveShipMotion, w: np.ndarray) -> np.ndarray:
+    """Heave of the centre of mass per unit wave elevation at w (rad/s), complex:
+    1 / (1 - r^2 + 2 i zeta r), r = w / w_heave (the hull's heave force, restoring to
+    the wave surface at the centre with damping on the hull's own velocity)."""
+    r = np.asarray(w) * motion.heave_period / (2 * math.pi)
+    return 1.0 / (1.0 - r * r + 2j * motion.damping_ratio * r)
+
+
+def sway_centre_velocity(motion: WaveShipMotion, points: int = 4000
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Std (3,) m/s and mean zero-crossing period (3,) s of the centre of mass's velocity
+    along E, N, U, from the sea spectrum and the hull's response. The hull feels no
+    horizontal wave force (only the weak mooring), so E and N are zero (measured: 6
+    um/s); U is the heave velocity, w^2 |H(w)|^2 S(w) integrated over the sea's band
+    (within 4 % of the measured std on the shipped sea). Periods of E and N: inf."""
+    w = np.linspace(*sea_band(motion), points)
+    density = w ** 2 * np.abs(heave_response(motion, w)) ** 2 * jonswap_density(motion, w)
+    m0 = np.trapezoid(density, w)
+    m2 = np.trapezoid(w ** 2 * density, w)
+    return (np.array([0.0, 0.0, math.sqrt(m0)]),
+            np.array([math.inf, math.inf, 2 * math.pi * math.sqrt(m0 / m2)]))
 
 
 class WaveShipWorld:
     """The 003 ship's MJCF (hull, gimbal, IMU) as a dynamic body in a random sea."""
 
+    smooth_truth = True
+    """The truth is the smooth motion MuJoCo's steps sample (``models.world.SmoothRun``):
+    a hull turns smoothly, and its piecewise-constant rates would read as coning."""
+
     def __init__(self, motion: WaveShipMotion, rng: np.random.Generator,
-                 timestep: float = 0.002, force_period: int = 5) -> None:
+                 timestep: float = 0.002, force_period: int = 1) -> None:
         """timestep: MuJoCo step, s (several per IMU sample keep the discrete rotation
         smooth for the strapdown's coning term); force_period: steps between updates of
-        the hydrodynamic wrench (held in between; 100 Hz by default)."""
+        the hydrodynamic wrench (held in between). Every step by default: a wrench held
+        over 10 ms steps the acceleration at the IMU's own rate, which a strapdown's
+        sculling term rectifies (0.63 mm/s over 120 s, against 0.005 mm/s)."""
         self.motion = motion
         self.force_period = force_period
-        xml = ship_mjcf(motion.lever_arm_b).replace(
+        xml = ship_mjcf(motion.lever_arm_b, floating=True).replace(
             '<option timestep="0.005" integrator="implicitfast"/>',
             f'<option timestep="{timestep:g}" integrator="implicitfast"/>')
         self.model = mujoco.MjModel.from_xml_string(xml)
@@ -103,15 +144,19 @@ class WaveShipWorld:
         self._gimbal_dof = [m.joint(j).dofadr[0] for j in ("gimbal_outer", "gimbal_inner")]
         self._gimbal_qpos = [m.joint(j).qposadr[0] for j in ("gimbal_outer", "gimbal_inner")]
         self.sea = jonswap_components(motion, rng)
+        beta = motion.wave_direction  # waves travel along (-sin beta, cos beta) in E, N
+        self._direction = np.array([-math.sin(beta), math.cos(beta)])
         mass = float(m.body_subtreemass[self._hull])
         inertia = self._hull_inertia()
         w = {name: 2 * math.pi / getattr(motion, f"{name}_period")
              for name in ("heave", "roll", "pitch")}
         zeta = motion.damping_ratio
-        self._k = np.array([mass * w["heave"] ** 2, inertia[0] * w["roll"] ** 2,
-                            inertia[1] * w["pitch"] ** 2])
-        self._c = 2 * zeta * np.array([mass * w["heave"], inertia[0] * w["roll"],
-                                       inertia[1] * w["pitch"]])
+        # Heave, pitch (about body x, the right axis) and roll (about y, forward):
+        # stiffness and damping from the natural periods and the damping ratio.
+        modal = np.array([mass, inertia[0], inertia[1]])
+        w_n = np.array([w["heave"], w["pitch"], w["roll"]])
+        self._k = modal * w_n ** 2
+        self._c = 2 * zeta * modal * w_n
         # Weak horizontal restoring (60 s period) and a heading autopilot (10 s), both
         # critically damped.
         self._k_h, self._c_h = mass * (2 * math.pi / 60) ** 2, 2 * mass * (2 * math.pi / 60)
@@ -129,16 +174,14 @@ class WaveShipWorld:
     def wave_at(self, t: float, xy: np.ndarray) -> tuple[float, np.ndarray]:
         """Elevation (m) and slope (dη/dE, dη/dN) of the sea at plane point xy, time t."""
         a, w, k, phase = self.sea
-        beta = self.motion.wave_direction
-        direction = np.array([-math.sin(beta), math.cos(beta)])  # CCW from north
-        arg = k * (xy @ direction) - w * t + phase
-        eta = float(np.sum(a * np.cos(arg)))
-        slope = -float(np.sum(a * k * np.sin(arg))) * direction
-        return eta, slope
+        arg = k * (xy @ self._direction) - w * t + phase
+        return float(np.sum(a * np.cos(arg))), -float(np.sum(a * k * np.sin(arg))) * self._direction
 
     def run(self, duration: float) -> DiscreteRun:
         """Float for duration (s), recording every physics step; the gimbal turns at its
-        rates (velocity-level kinematic drive: its joints are reset each step)."""
+        rates (velocity-level kinematic drive: its joints are reset each step). The
+        wrench is computed from the state at the start of each step (between
+        ``mj_step1`` and ``mj_step2``) every force_period steps."""
         m, d, motion = self.model, self.data, self.motion
         dt = m.opt.timestep
         n = int(round(duration / dt))
@@ -155,9 +198,10 @@ class WaveShipWorld:
                 qvel[self._gimbal_dof[i]] = rates[i]
             qpos_hist[k] = qpos
             qvel_hist[k] = qvel
+            mujoco.mj_step1(m, d)
             if k % self.force_period == 0:
                 xfrc[:] = self._hydrodynamic_wrench(t)
-            mujoco.mj_step(m, d)
+            mujoco.mj_step2(m, d)
         qvel_hist[n + 1] = qvel
         return DiscreteRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
                            quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3],
@@ -165,25 +209,26 @@ class WaveShipWorld:
                            imu_offset_b=np.asarray(motion.lever_arm_b, dtype=float))
 
     def _hydrodynamic_wrench(self, t: float) -> np.ndarray:
-        """Force and torque (6,) in world axes at the hull's centre of mass."""
+        """Force and torque (6,) in world axes at the hull's centre of mass, from the
+        state whose kinematics MuJoCo has computed (``mj_step1`` or ``mj_forward``)."""
         d = self.data
-        q = d.qpos[3:7]
-        C = quat_to_dcm(q)
-        pitch, roll, yaw = quat_to_euler(q)
+        C = d.xmat[self._hull].reshape(3, 3)       # hull to plane
+        pitch = math.asin(max(-1.0, min(1.0, C[2, 1])))   # PSINS Euler angles
+        roll = math.atan2(-C[2, 0], C[2, 2])
+        yaw = math.atan2(-C[0, 1], C[1, 1])
         centre = d.xipos[self._hull]
         eta, slope = self.wave_at(t, centre[:2])
         v = d.qvel[0:3]
         w_b = d.qvel[3:6]
         # Wave slopes seen along the body's right (x) and forward (y) axes.
-        slope_right = slope @ C[:2, 0]
-        slope_fwd = slope @ C[:2, 1]
-        force = np.array([-self._k_h * centre[0] - self._c_h * v[0],
-                          -self._k_h * centre[1] - self._c_h * v[1],
-                          self._mass * self._gravity - self._k[0] * (centre[2] - eta)
-                          - self._c[0] * v[2]])
+        slope_right = slope[0] * C[0, 0] + slope[1] * C[1, 0]
+        slope_fwd = slope[0] * C[0, 1] + slope[1] * C[1, 1]
+        force = (-self._k_h * centre[0] - self._c_h * v[0],
+                 -self._k_h * centre[1] - self._c_h * v[1],
+                 self._mass * self._gravity - self._k[0] * (centre[2] - eta) - self._c[0] * v[2])
         # Roll (about body y) follows the sideways slope, pitch (about x) the lengthwise.
-        torque_b = np.array([-self._k[2] * (pitch - math.atan(slope_fwd)) - self._c[2] * w_b[0],
-                             -self._k[1] * (roll + math.atan(slope_right)) - self._c[1] * w_b[1],
+        torque_b = np.array([-self._k[1] * (pitch - math.atan(slope_fwd)) - self._c[1] * w_b[0],
+                             -self._k[2] * (roll + math.atan(slope_right)) - self._c[2] * w_b[1],
                              -self._k_yaw * _wrap(yaw - self.motion.heading)
                              - self._c_yaw * w_b[2]])
         return np.concatenate([force, C @ torque_b])

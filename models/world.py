@@ -19,7 +19,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from models.attitude import cross, quat_rotate, quat_to_dcm, skew
+from scipy.interpolate import make_interp_spline
+
+from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
+                             rotvec_to_dcm, rotvec_to_quat, skew)
 
 
 @dataclass(frozen=True)
@@ -170,6 +173,13 @@ class DiscreteRun:
         steps = 0.5 * (v_site[:-1] + v_site[1:]) * self.dt
         return site[0] + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)]), v_site
 
+    def imu_increments(self, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
+                       gimbal_rates: tuple[float, float] = (0.0, 0.0)
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """IMU increments per physics step (``discrete_imu``): dtheta, dv (n, 3)."""
+        return discrete_imu(self, self.imu_trajectory()[1], omega_ie_t, gravity_t,
+                            gimbal_rates)
+
 
 def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
     """E = integral_0^dt exp(-[omega x] tau) dtau (..., 3, 3) for a constant rate (..., 3)."""
@@ -181,6 +191,27 @@ def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
     a = np.where(small, dt * dt / 2 - w * w * dt ** 4 / 24, (1 - np.cos(th)) / safe ** 2)
     b = np.where(small, dt ** 3 / 6 - w * w * dt ** 5 / 120, (dt - np.sin(th) / safe) / safe ** 2)
     return dt * np.eye(3) - a * K + b * (K @ K)
+
+
+def gimbal_sensor(t: np.ndarray, rates: tuple[float, float]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The double-axis gimbal turning at rates (outer about body z, inner about x, rad/s)
+    from zero at t = 0: C_s_b (..., 3, 3) = Rz(outer t) Rx(inner t) and the sensor's rate
+    relative to the body, omega_bs^s (..., 3) rad/s, at times t (...) s."""
+    outer_rate, inner_rate = rates
+    inner = inner_rate * t
+    omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
+                           np.cos(inner) * outer_rate], -1)
+    return rot_z(outer_rate * t) @ rot_x(inner), omega_bs_s
+
+
+def to_sensor(t: np.ndarray, omega_ib_b: np.ndarray, f_b: np.ndarray,
+              rates: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Body-axis inertial rate and specific force (..., 3) at times t (...) s to the axes
+    of the IMU on the gimbal (``gimbal_sensor``): omega_is^s and f^s (..., 3)."""
+    C_s_b, omega_bs_s = gimbal_sensor(t, rates)
+    return (np.einsum("...ji,...j->...i", C_s_b, omega_ib_b) + omega_bs_s,
+            np.einsum("...ji,...j->...i", C_s_b, f_b))
 
 
 def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
@@ -210,13 +241,10 @@ def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
     w = run.omega[1:-1]                        # (n, 3) rate over step k
     force_t = ((v_site[1:] - v_site[:-1]) / dt
                + 2.0 * cross(omega_ie_t, 0.5 * (v_site[1:] + v_site[:-1])) - gravity_t)
-    outer_rate, inner_rate = gimbal_rates
-    if outer_rate == 0.0 and inner_rate == 0.0:
+    if gimbal_rates[0] == 0.0 and gimbal_rates[1] == 0.0:
         E = rotation_integral(w, dt)           # (n, 3, 3)
         dtheta = w * dt + np.einsum("nij,j->ni", E @ Rt, omega_ie_t)
         return dtheta, np.einsum("nij,nj->ni", E @ Rt, force_t)
-    from models.attitude import rot_x, rot_z, rotvec_to_dcm
-
     t0 = run.t[:-1]
     dtheta = np.zeros_like(w)
     dv = np.zeros_like(w)
@@ -224,10 +252,108 @@ def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
         C_t_b = rotvec_to_dcm(-w * tau) @ Rt
         omega_b = w + np.einsum("nij,j->ni", C_t_b, omega_ie_t)
         f_b = np.einsum("nij,nj->ni", C_t_b, force_t)
-        inner = inner_rate * (t0 + tau)
-        omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
-                               np.cos(inner) * outer_rate], -1)
-        C = rot_z(outer_rate * (t0 + tau)) @ rot_x(inner)
-        dtheta += weight * (np.einsum("nji,nj->ni", C, omega_b) + omega_bs_s)
-        dv += weight * np.einsum("nji,nj->ni", C, f_b)
+        rate, force = to_sensor(t0 + tau, omega_b, f_b, gimbal_rates)
+        dtheta += weight * rate
+        dv += weight * force
     return dtheta, dv
+
+
+# Gauss-Legendre nodes (fractions of a step) and weights on [0, 1].
+_GAUSS2 = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
+_GAUSS3 = ((0.5 - np.sqrt(0.15), 5.0 / 18.0), (0.5, 8.0 / 18.0),
+           (0.5 + np.sqrt(0.15), 5.0 / 18.0))
+
+
+class SmoothRun:
+    """MuJoCo's discrete motion as the smooth motion it samples: the truth of a floating
+    hull, whose rates MuJoCo holds constant over each step.
+
+    A strapdown reads a piecewise-constant rate as spurious coning (h^2 / 12 omega x
+    omega_dot per unit time: 0.46 arcsec over 600 s on the wave-driven ship with its
+    gimbal at 2 ms steps); real hulls turn smoothly. Here the body rate is the derivative
+    of a quintic spline through the summed rotation increments, Theta_k, whose steps are
+    MuJoCo's rotation vectors omega[k+1] h less the coning of the smooth rate itself
+    (fourth-order Magnus, ~1e-12 rad a step), so that each step turns as MuJoCo's did;
+    the carrier origin follows a quintic spline through MuJoCo's positions (its mean
+    velocity over each step is MuJoCo's). Attitudes integrate the smooth rotations from
+    MuJoCo's first (``quat``); the IMU increments are Gauss-Legendre integrals (3 nodes a
+    step, exact to ~1e-15) of the smooth rate and specific force.
+    """
+
+    def __init__(self, run: DiscreteRun) -> None:
+        self.run = run
+        self.dt = run.dt
+        self.t = run.t
+        n = run.t.size - 1
+        turn = run.omega[1:n + 1] * run.dt       # MuJoCo's rotation vector of each step
+        coning = np.zeros_like(turn)
+        for _ in range(2):   # the rate's integral is the turn minus its own coning
+            self._theta = make_interp_spline(
+                run.t, np.concatenate([np.zeros((1, 3)), np.cumsum(turn - coning, 0)]), k=5)
+            previous, coning = coning, self._coning()
+        self._origin = make_interp_spline(run.t, run.pos, k=5)
+        step = turn - previous + coning
+        self.quat = quat_cumprod(np.concatenate([run.quat[:1], rotvec_to_quat(step)]))
+        self.cross_track = run.cross_track
+        self.wheel_angles = run.wheel_angles
+
+    def _coning(self) -> np.ndarray:
+        """Rotation vector of each step minus the rate's integral (n, 3) rad: the
+        fourth-order Magnus term sqrt(3) / 12 h^2 omega(t_a) x omega(t_b) at the two
+        Gauss nodes."""
+        t0, h = self.t[:-1], self.dt
+        w_a, w_b = (self._theta(t0 + c * h, 1) for c in _GAUSS2)
+        return np.sqrt(3.0) / 12.0 * h * h * cross(w_a, w_b)
+
+    def _attitude(self, t: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """C_b_t (..., 3, 3) at times t within steps k (t_k <= t <= t_k+1)."""
+        turn = self._theta(t) - self._theta(self.t[k])
+        return quat_to_dcm(self.quat[k]) @ rotvec_to_dcm(turn)
+
+    def _point(self, t: np.ndarray, k: np.ndarray, r_b: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Carrier attitude C_b_t, body rate omega_tb^b (rad/s) and the plane position (m),
+        velocity (m/s) and acceleration (m/s^2) of carrier point r_b at times t."""
+        R = self._attitude(t, k)
+        w, w_dot = self._theta(t, 1), self._theta(t, 2)
+        w_r = cross(w, r_b)
+        position = self._origin(t) + np.einsum("...ij,j->...i", R, r_b)
+        velocity = self._origin(t, 1) + np.einsum("...ij,...j->...i", R, w_r)
+        accel = self._origin(t, 2) + np.einsum("...ij,...j->...i", R,
+                                               cross(w_dot, r_b) + cross(w, w_r))
+        return R, w, position, velocity, accel
+
+    def point_kinematics(self, r_b: np.ndarray, index: np.ndarray | slice = slice(None)
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Plane position (m) and velocity (m/s) of the carrier point r_b (3,) m at the
+        samples t[index]."""
+        k = np.arange(self.t.size)[index]
+        _, _, position, velocity, _ = self._point(self.t[k], k,
+                                                  np.asarray(r_b, dtype=float))
+        return position, velocity
+
+    def imu_trajectory(self) -> tuple[np.ndarray, np.ndarray]:
+        """The IMU point's position (n+1, 3) m and velocity (n+1, 3) m/s at the samples."""
+        return self.point_kinematics(self.run.imu_offset_b)
+
+    def imu_increments(self, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
+                       gimbal_rates: tuple[float, float] = (0.0, 0.0),
+                       chunk: int = 20000) -> tuple[np.ndarray, np.ndarray]:
+        """IMU increments per physics step in sensor axes: dtheta (n, 3) rad and dv (n, 3)
+        m/s, f = a + 2 omega_ie x v - g with g the true gravity per step (gravity_t
+        (n, 3), plane axes); the gimbal as in ``discrete_imu``."""
+        n = self.t.size - 1
+        r_b = np.asarray(self.run.imu_offset_b, dtype=float)
+        dtheta, dv = np.zeros((n, 3)), np.zeros((n, 3))
+        for start in range(0, n, chunk):
+            k = np.arange(start, min(start + chunk, n))
+            for node, weight in _GAUSS3:
+                t = self.t[k] + node * self.dt
+                R, w, _, velocity, accel = self._point(t, k, r_b)
+                force_t = accel + 2.0 * cross(omega_ie_t, velocity) - gravity_t[k]
+                omega_b = w + np.einsum("nji,j->ni", R, omega_ie_t)
+                f_b = np.einsum("nji,nj->ni", R, force_t)
+                rate, force = to_sensor(t, omega_b, f_b, gimbal_rates)
+                dtheta[k] += weight * self.dt * rate
+                dv[k] += weight * self.dt * force
+        return dtheta, dv

@@ -38,12 +38,6 @@ sensor noise; ALGORITHMS 2.3)."""
 SWAY_AWARE_R = 5e-4
 """m/s: kf-sway's measurement sigma, the sensor-level noise of the velocity integral once
 the sway is modelled (lever-arm rates from gyros and encoders, accelerometer noise)."""
-WAVE_MEASUREMENT_SIGMA = (0.45, 0.7, 2.2)
-"""m/s along E, N, U for the wave-driven ship: about the peaks of its sway-centre velocity
-measured on the shipped sea (Hs 1.5 m, Tp 7 s; std 0.13 / 0.19 / 0.65-0.73 m/s, peaks
-0.44 / 0.73 / 2.1 m/s over 340 s, two seeds). Not yet derived from (Hs, Tp): the heave
-resonance (x2.2 at Tp) needs the hull's response. With the former 0.03 / 0.03 / 0.2 m/s
-every filter diverged in 80-100 % of the episodes."""
 PAPER_SETUP = {"setup": "paper", "scenario": "ship-sway-rotary-paper",
                "measurement_sigma": (SWAY_R_FLOOR,) * 3,
                "default_filters": ("kf", "sakf-r", "makf-r", "imakf-r")}
@@ -73,13 +67,24 @@ def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
                         damping=0.0)
 
 
-def sway_measurement_sigma(config: ScenarioConfig) -> tuple[float, float, float]:
+def sway_measurement_sigma(config: ScenarioConfig, duration: float = 600.0
+                           ) -> tuple[float, float, float]:
     """The honest default R of the fine alignment, per local axis E, N, U (m/s):
-    sigma_j = max(SWAY_R_FLOOR, SWAY_R_MARGIN x A_j x 2 pi / T_j) from the prescribed
-    sway's amplitudes A_j (m) and periods T_j (s); the wave-driven ship's fixed values."""
-    if config.world != "ship-prescribed":
-        return WAVE_MEASUREMENT_SIGMA
-    peak = sway_peak_velocity(config.motion)
+    sigma_j = max(SWAY_R_FLOOR, SWAY_R_MARGIN x peak_j). The prescribed sway's peak is
+    A_j x 2 pi / T_j. The wave-driven ship's is the expected largest velocity peak of its
+    centre of mass over the fine alignment (duration, s): std x sqrt(2 ln(duration /
+    T_z)), the largest of duration / T_z Rayleigh-distributed peaks of a narrow-band
+    process, from the sea state and the hull's heave response
+    (``models.waves.sway_centre_velocity``; zero along E and N, where the hull feels no
+    wave force)."""
+    if config.world == "ship-prescribed":
+        peak = sway_peak_velocity(config.motion)
+    else:
+        from models.waves import sway_centre_velocity
+
+        std, period = sway_centre_velocity(config.motion)
+        peaks = np.maximum(duration / period, np.e)   # at least one peak: factor >= 1.4
+        peak = std * np.sqrt(2.0 * np.log(peaks))
     return tuple(float(s) for s in np.maximum(SWAY_R_FLOOR, SWAY_R_MARGIN * peak))
 
 
@@ -124,14 +129,14 @@ class Paper003Experiment(Experiment):
 
     def tuning(self, config: ScenarioConfig) -> FineTuning:
         imu = ImuTuning.from_spec(config.imu)
+        sigma = self.measurement_sigma or sway_measurement_sigma(config, self.fine_duration)
         return FineTuning(velocity_sigma=self.velocity_sigma,
                           attitude_sigma=tuple(a * deg for a in self.attitude_sigma_deg),
                           gyro_bias_sigma=imu.gyro_bias_sigma,
                           accel_bias_sigma=imu.accel_bias_sigma,
                           gyro_noise_density=imu.gyro_noise_density,
                           accel_noise_density=imu.accel_noise_density,
-                          measurement_sigma=(self.measurement_sigma
-                                             or sway_measurement_sigma(config)),
+                          measurement_sigma=sigma,
                           step=self.filter_step)
 
     def prepare_episode(self, seed: int, config: ScenarioConfig | None = None

@@ -155,7 +155,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     steps, the exact discrete IMU, and the world's odometer, GPS and encoders."""
     from models.attitude import euler_to_quat, quat_mul
     from models.truth import gravity_t, plane_truth
-    from models.world import discrete_imu
+    from models.world import SmoothRun
     from sensors import gps as gps_sensor
 
     rngs = episode_rngs(seed)
@@ -168,11 +168,13 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
         from models.waves import WaveShipWorld
         world = WaveShipWorld(motion, rngs["motion"])
     run = world.run(config.duration)
+    if world.smooth_truth:
+        run = SmoothRun(run)
     plane = TangentPlane(config.latitude, config.longitude, config.height)
     site, v_site = run.imu_trajectory()
     rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
-    dtheta, dv = discrete_imu(run, v_site, plane.omega_ie_t,
-                              gravity_t(plane, 0.5 * (site[:-1] + site[1:])), rates)
+    dtheta, dv = run.imu_increments(plane.omega_ie_t,
+                                    gravity_t(plane, 0.5 * (site[:-1] + site[1:])), rates)
     gimbal = motion.gimbal_angles(run.t)
     # C_s_b = Rz(outer) Rx(inner): the PSINS Euler DCM with pitch = inner, yaw = outer.
     q_s_b = euler_to_quat(np.stack([gimbal[:, 1], np.zeros(run.t.size), gimbal[:, 0]], -1))
