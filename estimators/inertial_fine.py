@@ -39,7 +39,8 @@ class FineTuning:
     """Filter tuning, SI. Sigmas of the initial covariance: velocity integral (m/s),
     misalignment E, N, U in n (rad), gyro drift (rad/s), accelerometer bias (m/s^2).
     White-noise densities (rad/sqrt(s), m/s/sqrt(s)). Measurement sigmas along E, N, U
-    (m/s). step: filter period, s (a whole number of IMU intervals)."""
+    (m/s). step: filter period, s (a whole number of IMU intervals). start_sway_sigma: see
+    ``initial_covariance``."""
 
     velocity_sigma: float
     attitude_sigma: tuple[float, float, float]
@@ -49,12 +50,17 @@ class FineTuning:
     accel_noise_density: float
     measurement_sigma: tuple[float, float, float]
     step: float = 1.0
+    start_sway_sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def initial_covariance(self, C_n_i0: np.ndarray) -> np.ndarray:
-        """P0 (B, 12, 12); the attitude block rotated from n to i at the start."""
+        """P0 (B, 12, 12); the attitude block rotated from n to i at the start. The
+        velocity block adds the sway centre's velocity at the start (start_sway_sigma,
+        std along E, N, U, m/s): the measurement carries -C_n^i(t1) v_sway(t1) as a
+        constant through the whole alignment, an initial error of dV, not white noise."""
         batch = C_n_i0.shape[0]
         P = np.zeros((batch, N_STATES, N_STATES))
-        P[:, V, V] = np.eye(3) * self.velocity_sigma ** 2
+        P[:, V, V] = np.eye(3) * self.velocity_sigma ** 2 + C_n_i0 @ np.diag(
+            np.square(self.start_sway_sigma)) @ np.swapaxes(C_n_i0, -1, -2)
         P[:, PHI, PHI] = C_n_i0 @ np.diag(np.square(self.attitude_sigma)) @ np.swapaxes(
             C_n_i0, -1, -2)
         P[:, EPS, EPS] = np.eye(3) * self.gyro_bias_sigma ** 2

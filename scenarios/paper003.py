@@ -53,18 +53,32 @@ def sway_peak_velocity(motion) -> np.ndarray:
 
 
 def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
-    """The prescribed sway per local axis: its periods, sigma_j = A_j w_j / sqrt(2) (the
-    std of a random-phase sinusoid's velocity, at least 0.1 mm/s to keep P0 positive
-    definite) and zeta = 0: the sinusoids' periods are exact, so only their amplitudes
-    and phases are unknown (no process noise). Measured on 20 episodes: zeta = 0.02
-    makes the filter underconfident (NEES 4.9 for 9 states: the oscillators' bandwidth
-    competes with the modulated accelerometer biases), zeta = 0 is in band (9.7)."""
-    if config.world != "ship-prescribed":
-        raise ConfigError("kf-sway needs the prescribed sway's periods and amplitudes; "
-                          f"scenario {config.name!r} has world = {config.world!r}")
-    sigma = np.maximum(sway_peak_velocity(config.motion) / np.sqrt(2.0), 1e-4)
-    return SwaySpectrum(period=tuple(config.motion.linear_period), sigma=tuple(sigma),
-                        damping=0.0)
+    """The sway of the sway centre per local axis, for kf-sway.
+
+    Prescribed: its periods, sigma_j = A_j w_j / sqrt(2) (the std of a random-phase
+    sinusoid's velocity) and zeta = 0: the sinusoids' periods are exact, so only their
+    amplitudes and phases are unknown (no process noise). Measured on 20 episodes: zeta =
+    0.02 makes the filter underconfident (NEES 4.9 for 9 states: the oscillators'
+    bandwidth competes with the modulated accelerometer biases), zeta = 0 is in band (9.7).
+    Wave-driven: the heave velocity as a narrow-band process, from the sea state and the
+    hull's response: its std, and the period and damping ratio whose oscillator fits its
+    autocorrelation (``models.waves.heave_velocity_band``).
+    Sigmas are at least 0.1 mm/s, to keep P0 positive definite.
+    """
+    if config.world == "ship-prescribed":
+        sigma = sway_peak_velocity(config.motion) / np.sqrt(2.0)
+        period, damping = tuple(config.motion.linear_period), 0.0
+    elif config.world == "ship-waves":
+        from models.waves import heave_velocity_band, sway_centre_velocity
+
+        sigma = sway_centre_velocity(config.motion)[0]
+        peak_period, damping = heave_velocity_band(config.motion)
+        period = (peak_period,) * 3
+    else:
+        raise ConfigError("kf-sway needs a ship's sway; scenario "
+                          f"{config.name!r} has world = {config.world!r}")
+    return SwaySpectrum(period=period, sigma=tuple(np.maximum(sigma, 1e-4)),
+                        damping=float(damping))
 
 
 def sway_measurement_sigma(config: ScenarioConfig, duration: float = 600.0
@@ -94,7 +108,10 @@ class Paper003Experiment(Experiment):
 
     Times in s; attitude_sigma (deg) is the filter's initial misalignment sigma along
     E, N, U (assumed, ALGORITHMS 2.2); measurement_sigma (m/s) along E, N, U: None
-    derives it from the scenario's sway (``sway_measurement_sigma``); heading_threshold
+    derives it from the scenario's sway (``sway_measurement_sigma``); start_sway_sigma
+    (m/s, E, N, U): the sway velocity's std at the start of the fine alignment, added to
+    P0 of the velocity integral (None: from ``sway_spectrum``; zero in the paper's
+    setup); heading_threshold
     in arcmin; default_filters: the campaign's filter list; setup: "default" or "paper"
     (``PAPER_SETUP``).
     """
@@ -108,6 +125,7 @@ class Paper003Experiment(Experiment):
     attitude_sigma_deg: tuple[float, float, float] = (1.0, 1.0, 5.0)
     velocity_sigma: float = 0.01
     measurement_sigma: tuple[float, float, float] | None = None
+    start_sway_sigma: tuple[float, float, float] | None = None
     rho: float = 0.95
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 5.0
@@ -130,7 +148,10 @@ class Paper003Experiment(Experiment):
     def tuning(self, config: ScenarioConfig) -> FineTuning:
         imu = ImuTuning.from_spec(config.imu)
         sigma = self.measurement_sigma or sway_measurement_sigma(config, self.fine_duration)
-        return FineTuning(velocity_sigma=self.velocity_sigma,
+        start = self.start_sway_sigma
+        if start is None:   # the paper treats the sway as white measurement noise only
+            start = (0.0,) * 3 if self.setup == "paper" else sway_spectrum(config).sigma
+        return FineTuning(velocity_sigma=self.velocity_sigma, start_sway_sigma=tuple(start),
                           attitude_sigma=tuple(a * deg for a in self.attitude_sigma_deg),
                           gyro_bias_sigma=imu.gyro_bias_sigma,
                           accel_bias_sigma=imu.accel_bias_sigma,
@@ -148,11 +169,7 @@ class Paper003Experiment(Experiment):
         coarse = np.stack([e.coarse_error for e in episodes])
         return {"mean": coarse.mean(0), "max": signed_extreme(coarse, np.argmax)}
 
-    @property
-    def model_variants(self) -> tuple[str, ...]:
-        """"sway-aware" needs the prescribed sway's periods and amplitudes."""
-        return (("sway-aware",) if self.scenario_config().world == "ship-prescribed"
-                else ())
+    model_variants = ("sway-aware",)
 
     def model(self, episodes, start_error, variant="", tuning: FineTuning | None = None):
         """The 12-state model, or ("sway-aware") the 18-state model with the scenario's
@@ -161,8 +178,10 @@ class Paper003Experiment(Experiment):
         config = self.scenario_config()
         if tuning is None:
             tuning = self.tuning(config)
-            if variant == "sway-aware":  # the sway is modelled: sensor-level R
-                tuning = replace(tuning, measurement_sigma=(SWAY_AWARE_R,) * 3)
+            if variant == "sway-aware":  # the sway is modelled: sensor-level R, and the
+                # oscillators carry the start velocity
+                tuning = replace(tuning, measurement_sigma=(SWAY_AWARE_R,) * 3,
+                                 start_sway_sigma=(0.0,) * 3)
         args = (inputs, start_attitude(episodes, start_error), tuning,
                 np.array([e.lat for e in episodes]), np.array([e.h for e in episodes]))
         if variant == "":

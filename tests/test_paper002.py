@@ -114,7 +114,8 @@ def test_paper003_numbers_unchanged_by_the_framework():
 
     ref = json.loads(BASELINE.read_text())
     filters = sorted({key.split("/")[0] for key in ref["runs"]})
-    then = Paper003Experiment(measurement_sigma=(0.03, 0.03, 0.2))  # R of 16ec202
+    then = Paper003Experiment(measurement_sigma=(0.03, 0.03, 0.2),  # R and P0 of 16ec202
+                              start_sway_sigma=(0.0, 0.0, 0.0))
     result = run_campaign(episodes=2, seed=7, filters=filters, workers=1, progress=False,
                           experiment=then)
     np.testing.assert_allclose(coarse_errors(result), ref["coarse"], rtol=1e-12)

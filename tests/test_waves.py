@@ -97,6 +97,23 @@ def test_sway_centre_velocity_from_the_sea_state(centre_velocity):
     assert zero_crossing_period(v[:, 2], 0.002) == pytest.approx(period[2], rel=0.1)
 
 
+def test_heave_velocity_is_the_narrow_band_process_of_kf_sway(centre_velocity):
+    """kf-sway's model of the wave-driven heave velocity (std, period and damping from the
+    sea state): the measured autocorrelation follows the oscillator's
+    exp(-zeta w tau) cos(w tau) over the first two periods (measured within 0.1)."""
+    from scenarios.paper003 import sway_spectrum
+    _, v = centre_velocity
+    spectrum = sway_spectrum(load_scenario("ship-waves-rotary"))
+    u = v[int(60 / 0.002)::50, 2]                   # 10 Hz, after the transient
+    w = 2 * np.pi / spectrum.period[2]
+    assert u.std() == pytest.approx(spectrum.sigma[2], rel=0.08)
+    for tau in np.arange(0.5, 14.0, 0.5):
+        lag = int(round(tau * 10))
+        measured = np.mean(u[:-lag] * u[lag:]) / u.var()
+        model = np.exp(-spectrum.damping * w * tau) * np.cos(w * tau)
+        assert abs(measured - model) < 0.15, tau
+
+
 def test_wave_measurement_sigma_covers_the_heave_peaks(centre_velocity):
     """The derived R: the calm-sea floor along E and N, and along U the margin above the
     expected largest heave-velocity peak, which the measured largest peak matches."""
