@@ -1,6 +1,7 @@
 """Benchmark: wall time of the full paper-003 campaign (50 episodes, 4 filters, two
 starting errors) on this machine, split into episode preparation and the filters.
-Run: python benchmarks/bench_campaign.py [EPISODES]"""
+Run: python benchmarks/bench_campaign.py [EPISODES] [SCENARIO]
+(SCENARIO: ship-sway-rotary by default, or ship-waves-rotary)."""
 from __future__ import annotations
 
 import os
@@ -12,7 +13,8 @@ from scenarios.paper003 import Paper003Experiment, prepare_episode, run_campaign
 
 def main() -> None:
     episodes = int(sys.argv[1]) if len(sys.argv) > 1 else 50
-    experiment = Paper003Experiment()
+    scenario = sys.argv[2] if len(sys.argv) > 2 else "ship-sway-rotary"
+    experiment = Paper003Experiment(scenario=scenario)
     start = time.perf_counter()
     prepare_episode(experiment, 12345)
     one = time.perf_counter() - start
@@ -20,7 +22,7 @@ def main() -> None:
     result = run_campaign(episodes=episodes, seed=0, progress=False, experiment=experiment)
     total = time.perf_counter() - start
     filters = sum(r.result.seconds_per_epoch * (r.result.t.size - 1) for r in result.runs)
-    print(f"paper003 campaign, {episodes} episodes x 4 filters x 2 starts, "
+    print(f"paper003 campaign on {scenario}, {episodes} episodes x 4 filters x 2 starts, "
           f"{os.cpu_count()} cores: {total:.1f} s wall")
     print(f"  one episode (720 s MuJoCo truth + IMU + integrals + coarse): {one:.2f} s on one "
           f"core; filters (all runs, batched): {filters:.1f} s; the rest is preparation "
