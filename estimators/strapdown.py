@@ -21,8 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.attitude import cross, quat_mul, quat_rotate, rotvec_to_quat
-from models.earth import A, E2, OMEGA_IE, normal_gravity
+from numba import njit
+
+from models.attitude import cross
+from models.earth import _K_SOMIGLIANA, _M, A, E2, F, GAMMA_EQUATOR, OMEGA_IE
 
 
 @dataclass
@@ -86,6 +88,97 @@ def compensate(dtheta: np.ndarray, dv: np.ndarray, dtheta_first_prev: np.ndarray
             body_velocity_increment(dtheta, dv, dtheta_prev, dv_prev))
 
 
+@njit(cache=True)
+def _mechanize(q0, v0, lat0, lon0, h0, a0, phi, dv_b, T, q, v, lat, lon, h, a_end):
+    """The mechanization of ``Strapdown.update_compensated`` over M intervals for B
+    episodes, compiled: phi, dv_b (B, M, 3); the state and the previous interval's
+    acceleration a0 (B, 3) at the start; fills the trajectory q (B, M+1, 4), v (B, M+1, 3),
+    lat, lon, h (B, M+1) and the last acceleration a_end (B, 3)."""
+    B, M = phi.shape[0], phi.shape[1]
+    for b in range(B):
+        q[b, 0] = q0[b]
+        v[b, 0] = v0[b]
+        lat[b, 0], lon[b, 0], h[b, 0] = lat0[b], lon0[b], h0[b]
+        a_e, a_nn, a_u = a0[b, 0], a0[b, 1], a0[b, 2]
+        for k in range(M):
+            qw, qx, qy, qz = q[b, k, 0], q[b, k, 1], q[b, k, 2], q[b, k, 3]
+            ve, vn, vu = v[b, k, 0], v[b, k, 1], v[b, k, 2]
+            L, hk = lat[b, k], h[b, k]
+            # Mid-interval navigation quantities from the extrapolated velocity.
+            me, mn, mu = ve + 0.5 * T * a_e, vn + 0.5 * T * a_nn, vu + 0.5 * T * a_u
+            s0 = np.sin(L)
+            R_M = A * (1.0 - E2) / (1.0 - E2 * s0 * s0) ** 1.5
+            lat_mid = L + 0.5 * T * mn / (R_M + hk)
+            h_mid = hk + 0.5 * T * mu
+            sL, cL = np.sin(lat_mid), np.cos(lat_mid)
+            w2 = 1.0 - E2 * sL * sL
+            R_Mh = A * (1.0 - E2) / w2 ** 1.5 + h_mid
+            R_Nh = A / np.sqrt(w2) + h_mid
+            ie_n, ie_u = OMEGA_IE * cL, OMEGA_IE * sL
+            en_e, en_n, en_u = -mn / R_Mh, me / R_Nh, me * sL / (cL * R_Nh)
+            in_e, in_n, in_u = en_e, ie_n + en_n, ie_u + en_u
+            s2 = sL * sL
+            gamma = (GAMMA_EQUATOR * (1.0 + _K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2 * s2)
+                     * (1.0 - 2.0 / A * (1.0 + F + _M - 2.0 * F * s2) * h_mid
+                        + 3.0 * h_mid * h_mid / (A * A)))
+            # dv_n = C(q) dv_b, then resolved in n(k-1/2).
+            bx, by, bz = dv_b[b, k, 0], dv_b[b, k, 1], dv_b[b, k, 2]
+            tx, ty, tz = 2.0 * (qy * bz - qz * by), 2.0 * (qz * bx - qx * bz), \
+                2.0 * (qx * by - qy * bx)
+            dx = bx + qw * tx + (qy * tz - qz * ty)
+            dy = by + qw * ty + (qz * tx - qx * tz)
+            dz = bz + qw * tz + (qx * ty - qy * tx)
+            cx, cy, cz = in_n * dz - in_u * dy, in_u * dx - in_e * dz, in_e * dy - in_n * dx
+            dx, dy, dz = dx - 0.5 * T * cx, dy - 0.5 * T * cy, dz - 0.5 * T * cz
+            # Coriolis and transport: (omega_ie + omega_in) x v_mid.
+            we, wn, wu = in_e, ie_n + in_n, ie_u + in_u
+            ce, cn, cu = wn * mu - wu * mn, wu * me - we * mu, we * mn - wn * me
+            ne, nn, nu = ve + dx - T * ce, vn + dy - T * cn, vu + dz + T * (-gamma - cu)
+            v[b, k + 1, 0], v[b, k + 1, 1], v[b, k + 1, 2] = ne, nn, nu
+            lat[b, k + 1] = L + T * 0.5 * (vn + nn) / R_Mh
+            lon[b, k + 1] = lon[b, k] + T * 0.5 * (ve + ne) / (R_Nh * cL)
+            h[b, k + 1] = hk + T * 0.5 * (vu + nu)
+            # q <- q(-omega_in T) q q(phi)
+            px, py, pz = phi[b, k, 0], phi[b, k, 1], phi[b, k, 2]
+            pw, px, py, pz = _rotvec_quat(px, py, pz)
+            rw = qw * pw - qx * px - qy * py - qz * pz
+            rx = qw * px + qx * pw + qy * pz - qz * py
+            ry = qw * py - qx * pz + qy * pw + qz * px
+            rz = qw * pz + qx * py - qy * px + qz * pw
+            lw, lx, ly, lz = _rotvec_quat(-T * in_e, -T * in_n, -T * in_u)
+            ow = lw * rw - lx * rx - ly * ry - lz * rz
+            ox = lw * rx + lx * rw + ly * rz - lz * ry
+            oy = lw * ry - lx * rz + ly * rw + lz * rx
+            oz = lw * rz + lx * ry - ly * rx + lz * rw
+            norm = np.sqrt(ow * ow + ox * ox + oy * oy + oz * oz)
+            q[b, k + 1, 0], q[b, k + 1, 1] = ow / norm, ox / norm
+            q[b, k + 1, 2], q[b, k + 1, 3] = oy / norm, oz / norm
+            a_e, a_nn, a_u = (ne - ve) / T, (nn - vn) / T, (nu - vu) / T
+        a_end[b, 0], a_end[b, 1], a_end[b, 2] = a_e, a_nn, a_u
+
+
+@njit(cache=True)
+def _rotvec_quat(x, y, z):
+    """Quaternion exp of the rotation vector (x, y, z) rad."""
+    angle = np.sqrt(x * x + y * y + z * z)
+    half = 0.5 * angle
+    scale = 0.5 - angle * angle / 48.0 if angle < 1e-4 else np.sin(half) / angle
+    return np.cos(half), scale * x, scale * y, scale * z
+
+
+def _run(state: StrapdownState, a_n: np.ndarray, phi: np.ndarray, dv_b: np.ndarray,
+         dt: float) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The compiled mechanization from a state over compensated increments (B, M, 3)."""
+    B, M = phi.shape[:2]
+    out = {"q_b_n": np.empty((B, M + 1, 4)), "v_n": np.empty((B, M + 1, 3)),
+           "lat": np.empty((B, M + 1)), "lon": np.empty((B, M + 1)), "h": np.empty((B, M + 1))}
+    a_end = np.empty((B, 3))
+    _mechanize(state.q_b_n, state.v_n, state.lat, state.lon, state.h, a_n,
+               np.ascontiguousarray(phi, dtype=float), np.ascontiguousarray(dv_b, dtype=float),
+               float(dt), out["q_b_n"], out["v_n"], out["lat"], out["lon"], out["h"], a_end)
+    return out, a_end
+
+
 class Strapdown:
     """Strapdown integrator for B episodes at a fixed IMU interval dt (s)."""
 
@@ -109,43 +202,13 @@ class Strapdown:
 
     def update_compensated(self, phi: np.ndarray, dv_b: np.ndarray) -> StrapdownState:
         """Advance one interval with the compensated rotation vector phi (B, 3) rad and
-        body-frame velocity increment dv_b (B, 3) m/s (see ``compensate``)."""
-        s, T = self.state, self.dt
-        # Mid-interval navigation quantities from the extrapolated velocity.
-        v_mid = s.v_n + 0.5 * T * self._a_n
-        sL0 = np.sin(s.lat)
-        R_M = A * (1.0 - E2) / (1.0 - E2 * sL0 * sL0) ** 1.5
-        lat_mid = s.lat + 0.5 * T * v_mid[:, 1] / (R_M + s.h)
-        h_mid = s.h + 0.5 * T * v_mid[:, 2]
-        sL, cL = np.sin(lat_mid), np.cos(lat_mid)
-        w2 = 1.0 - E2 * sL * sL
-        R_Mh = A * (1.0 - E2) / w2 ** 1.5 + h_mid
-        R_Nh = A / np.sqrt(w2) + h_mid
-        omega_ie = np.zeros_like(v_mid)
-        omega_ie[:, 1] = OMEGA_IE * cL
-        omega_ie[:, 2] = OMEGA_IE * sL
-        omega_en = np.empty_like(v_mid)
-        omega_en[:, 0] = -v_mid[:, 1] / R_Mh
-        omega_en[:, 1] = v_mid[:, 0] / R_Nh
-        omega_en[:, 2] = v_mid[:, 0] * sL / (cL * R_Nh)
-        omega_in = omega_ie + omega_en
-        g_n = np.zeros_like(v_mid)
-        g_n[:, 2] = -normal_gravity(lat_mid, h_mid)
-
-        dv_n = quat_rotate(s.q_b_n, dv_b)
-        dv_n -= 0.5 * T * cross(omega_in, dv_n)  # resolve in n(k-1/2)
-        v_new = s.v_n + dv_n + T * (g_n - cross(omega_ie + omega_in, v_mid))
-
-        v_avg = 0.5 * (s.v_n + v_new)
-        lat_new = s.lat + T * v_avg[:, 1] / R_Mh
-        lon_new = s.lon + T * v_avg[:, 0] / (R_Nh * cL)
-        h_new = s.h + T * v_avg[:, 2]
-
-        q = quat_mul(rotvec_to_quat(-T * omega_in), quat_mul(s.q_b_n, rotvec_to_quat(phi)))
-        q /= np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-
-        self._a_n = (v_new - s.v_n) / T
-        self.state = StrapdownState(q, v_new, lat_new, lon_new, h_new)
+        body-frame velocity increment dv_b (B, 3) m/s (see ``compensate``): the
+        rotation of q_b_n by phi and by the n frame's turn, the velocity increment
+        resolved in n at mid-interval, gravity, Coriolis and transport at the
+        mid-interval position and (extrapolated) velocity, position by the trapezoid rule."""
+        out, self._a_n = _run(self.state, self._a_n, phi[:, None], dv_b[:, None], self.dt)
+        self.state = StrapdownState(out["q_b_n"][:, 1], out["v_n"][:, 1], out["lat"][:, 1],
+                                    out["lon"][:, 1], out["h"][:, 1])
         return self.state
 
 
@@ -155,21 +218,11 @@ def run_strapdown(initial: StrapdownState, dtheta: np.ndarray, dv: np.ndarray, d
     trajectory at the M+1 interval boundaries: q_b_n (B, M+1, 4), v_n (B, M+1, 3),
     lat, lon, h (B, M+1).
     """
+    if not dt > 0.0:
+        raise ValueError(f"dt must be > 0 s, got {dt}")
     dtheta = np.asarray(dtheta, dtype=float)
     dv = np.asarray(dv, dtype=float)
     if dtheta.ndim == 2:
         dtheta, dv = dtheta[None], dv[None]
-    B, M, _ = dtheta.shape
-    out = {"q_b_n": np.empty((B, M + 1, 4)), "v_n": np.empty((B, M + 1, 3)),
-           "lat": np.empty((B, M + 1)), "lon": np.empty((B, M + 1)), "h": np.empty((B, M + 1))}
     phi, dv_b = compensate(dtheta, dv)
-    mech = Strapdown(initial, dt)
-
-    def record(k: int, s: StrapdownState) -> None:
-        out["q_b_n"][:, k], out["v_n"][:, k] = s.q_b_n, s.v_n
-        out["lat"][:, k], out["lon"][:, k], out["h"][:, k] = s.lat, s.lon, s.h
-
-    record(0, initial)
-    for k in range(M):
-        record(k + 1, mech.update_compensated(phi[:, k], dv_b[:, k]))
-    return out
+    return _run(initial, np.zeros_like(initial.v_n), phi, dv_b, dt)[0]

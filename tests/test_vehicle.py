@@ -31,18 +31,13 @@ def rough(name, duration):
     return replace(config, motion=replace(config.motion, start_time=2.0, roughness_rms=0.004))
 
 
-def test_fidelity_rough_road_500hz_short():
-    err = fidelity_errors(rough("ring-road-odometer", 60.0), seed=3)
-    assert err["attitude_rad"] < 0.1 * arcsec and err["velocity_m_s"] < 0.5e-3
-    assert err["position_m"] < 0.1
-
-
-@pytest.mark.slow
 @pytest.mark.parametrize("name", ["ring-road-odometer", "figure8-gps"])
 def test_fidelity_rough_road_500hz_600s(name):
+    """SPEC 3 over 600 s on a rough road at 500 Hz, asserted 5x better (measured 0.016 /
+    0.025 arcsec, 0.19 / 0.50 mm/s, 0.05 / 0.14 m on the ring / figure-8)."""
     err = fidelity_errors(rough(name, 600.0), seed=3)
-    assert err["attitude_rad"] < arcsec and err["velocity_m_s"] < 5e-3
-    assert err["position_m"] < 1.0
+    assert err["attitude_rad"] < 0.2 * arcsec and err["velocity_m_s"] < 1e-3
+    assert err["position_m"] < 0.2
 
 
 def test_gps_error_statistics_and_heading_sigma():
