@@ -86,6 +86,16 @@ def build_parser() -> argparse.ArgumentParser:
                        help="reuse the episodes already finished in --out")
     bench.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
                        help="parallel processes (default: all cores)")
+    reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
+                         "its stored baseline; exit 1 when a metric moved beyond tolerance")
+    reg.add_argument("--papers", default="paper002,paper003",
+                     help="comma-separated papers (default: paper002,paper003)")
+    reg.add_argument("--update", action="store_true",
+                     help="store this run's metrics as the new baselines")
+    reg.add_argument("--baselines", metavar="DIR",
+                     help="baseline directory (default: tests/baselines of the checkout)")
+    reg.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
+                     help="parallel processes (default: all cores)")
     return parser
 
 
@@ -165,6 +175,16 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
+def _cmd_regress(args: argparse.Namespace) -> int:
+    from scenarios.regress import BASELINE_DIR, regress
+
+    papers = [p.strip() for p in args.papers.split(",") if p.strip()]
+    passed, report = regress(papers, update=args.update,
+                             directory=args.baselines or BASELINE_DIR, workers=args.workers)
+    print(report)
+    return 0 if passed else 1
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -172,6 +192,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_simulate(args)
         if args.command == "bench":
             return _cmd_bench(args)
+        if args.command == "regress":
+            return _cmd_regress(args)
         return _cmd_fidelity(args)
     except ConfigError as exc:
         print(f"aligngym: error: {exc}", file=sys.stderr)

@@ -104,32 +104,6 @@ def test_bench_bad_filter_level_is_one_line(capsys):
     assert "Traceback" not in err
 
 
-BASELINE = Path(__file__).parent / "baselines" / "paper003_seed7.json"
-
-
-def test_paper003_numbers_unchanged_by_the_framework():
-    """Regression: the paper-003 campaign (2 episodes, seed 7) gives the numbers the
-    pre-framework code gave (stored baseline), to 1e-9 relative."""
-    from scenarios.paper003 import Paper003Experiment, coarse_errors, run_campaign
-
-    ref = json.loads(BASELINE.read_text())
-    filters = sorted({key.split("/")[0] for key in ref["runs"]})
-    then = Paper003Experiment(measurement_sigma=(0.03, 0.03, 0.2),  # R and P0 of 16ec202
-                              start_sway_sigma=(0.0, 0.0, 0.0))
-    result = run_campaign(episodes=2, seed=7, filters=filters, workers=1, progress=False,
-                          experiment=then)
-    np.testing.assert_allclose(coarse_errors(result), ref["coarse"], rtol=1e-12)
-    for r in result.runs:
-        stored = ref["runs"][f"{r.filter}/{r.start}"]
-        np.testing.assert_allclose(r.error_n[:, -1], stored["final_error_rad"], rtol=1e-9)
-        np.testing.assert_allclose(r.error_n[:, 100], stored["error_100s_rad"], rtol=1e-9)
-        np.testing.assert_allclose(r.result.sigma_n[:, -1], stored["final_sigma_rad"],
-                                   rtol=1e-9)
-        np.testing.assert_allclose(r.result.factors.sum(axis=(1, 2)), stored["factors_sum"],
-                                   rtol=1e-9)
-        np.testing.assert_allclose(r.nees[:, -1], stored["nees_final"], rtol=1e-9)
-
-
 def scenario_with_filter_table(tmp_path, table):
     text = (Path(__file__).parents[1] / "scenarios" / "data" /
             "static-large-azimuth.toml").read_text()

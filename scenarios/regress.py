@@ -1,0 +1,154 @@
+"""Scenario regression: each paper's campaign with a fixed seed and a small episode count,
+compared metric by metric with a stored baseline (``aligngym regress``).
+
+A baseline (``tests/baselines/regress_<paper>.json``) holds the campaign's settings and
+its metrics flattened to "path -> value" (the JSON summary's paths, plus each run's mean
+final NEES). Tolerances per kind of metric, and why:
+
+- errors in arcmin or deg, and NEES: 1e-4 relative (with an absolute floor of 1e-6):
+  another CPU or BLAS changes the last bits, which the fading-factor filters amplify
+  (measured: up to 1.4e-6 relative from a last-bit change of MuJoCo's kinematics), while
+  any change of the physics, the sensors or a filter moves them by far more than 1e-3;
+- diverged fractions: exact (an episode that flips is a regression to look at);
+- heading convergence times: 1 s, the filter step (a rounding flip moves one epoch).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from scenarios.config import ConfigError
+
+BASELINE_DIR = Path(__file__).resolve().parents[1] / "tests" / "baselines"
+
+CAMPAIGNS = {
+    "paper002": {"episodes": 8, "seed": 3, "filters": ["ekf", "ukf", "ckf", "sghkf-2"]},
+    "paper003": {"episodes": 4, "seed": 7,
+                 "filters": ["kf", "sakf", "makf", "imakf", "makf-n", "kf-sway", "sakf-r",
+                             "makf-r"],
+                 "experiment": {"fine_duration": 300.0}},
+}
+"""The regression campaign of each paper with a campaign: episodes, seed, filters and
+settings of the experiment that differ from its defaults (a shorter fine alignment keeps
+the suite quick; the filters still converge)."""
+
+SKIPPED = ("us_per_epoch",)
+"""Summary entries that are measurements of this machine, not results."""
+
+
+def tolerance(path: str) -> tuple[float, float]:
+    """(relative, absolute) tolerance of a metric, by its kind (module docstring)."""
+    if path.endswith("diverged_fraction"):
+        return 0.0, 0.0
+    if path.endswith("convergence_s"):
+        return 0.0, 1.0
+    return 1e-4, 1e-6
+
+
+def flatten(tree: dict | list | float, prefix: str = "") -> dict[str, float]:
+    """Nested summary -> {"a/b/0": value}; list items are indexed by position."""
+    items = tree.items() if isinstance(tree, dict) else enumerate(tree)
+    out: dict[str, float] = {}
+    for key, value in items:
+        path = f"{prefix}/{key}" if prefix else str(key)
+        if isinstance(value, (dict, list, tuple)):
+            out.update(flatten(value, path))
+        elif not any(path.endswith(s) for s in SKIPPED):
+            out[path] = float(value)
+    return out
+
+
+def campaign_metrics(paper: str, workers: int | None = None) -> dict[str, float]:
+    """Run a paper's regression campaign and flatten its results."""
+    from scenarios.campaign import run_campaign
+    from scenarios.experiments import experiment
+
+    settings = CAMPAIGNS[paper]
+    result = run_campaign(experiment(paper, **settings.get("experiment", {})),
+                          episodes=settings["episodes"],
+                          seed=settings["seed"], filters=settings["filters"],
+                          workers=workers, progress=False)
+    metrics = flatten(result.summary())
+    for run in result.runs:
+        metrics[f"nees_final_mean/{run.filter}/{run.start}"] = float(np.mean(run.nees[:, -1]))
+    return metrics
+
+
+@dataclass(frozen=True)
+class Difference:
+    """One metric against its baseline; ok when within tolerance."""
+
+    path: str
+    baseline: float
+    now: float
+
+    @property
+    def ok(self) -> bool:
+        if math.isnan(self.baseline) and math.isnan(self.now):
+            return True
+        rel, absolute = tolerance(self.path)
+        return abs(self.now - self.baseline) <= max(absolute, rel * abs(self.baseline))
+
+    @property
+    def moved(self) -> bool:
+        return not (self.now == self.baseline
+                    or (math.isnan(self.baseline) and math.isnan(self.now)))
+
+
+def compare(baseline: dict[str, float], now: dict[str, float]) -> tuple[list[Difference],
+                                                                        list[str]]:
+    """Differences of the common metrics, and the paths present on one side only."""
+    common = sorted(set(baseline) & set(now))
+    missing = sorted(set(baseline) ^ set(now))
+    return [Difference(p, baseline[p], now[p]) for p in common], missing
+
+
+def baseline_path(paper: str, directory: Path = BASELINE_DIR) -> Path:
+    return Path(directory) / f"regress_{paper}.json"
+
+
+def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_DIR,
+            workers: int | None = None) -> tuple[bool, str]:
+    """Run the regression campaigns; with update, store their metrics as the baselines.
+    Returns (passed, report): the report has a line per paper and a table of the metrics
+    that moved (beyond tolerance first)."""
+    unknown = [p for p in papers if p not in CAMPAIGNS]
+    if unknown:
+        raise ConfigError(f"--papers: {', '.join(unknown)} unknown; valid: "
+                          + ", ".join(CAMPAIGNS))
+    lines, passed = [], True
+    for paper in papers:
+        path = baseline_path(paper, directory)
+        if update:
+            now = campaign_metrics(paper, workers)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps({"settings": CAMPAIGNS[paper], "metrics": now},
+                                       indent=1, sort_keys=True))
+            lines.append(f"{paper}: baseline written ({len(now)} metrics) to {path}")
+            continue
+        if not path.is_file():
+            raise ConfigError(f"no baseline for {paper} at {path}; run with --update")
+        stored = json.loads(path.read_text())
+        if stored.get("settings") != CAMPAIGNS[paper]:
+            raise ConfigError(f"{path} was made with other settings "
+                              f"({stored.get('settings')}); run with --update")
+        now = campaign_metrics(paper, workers)
+        diffs, missing = compare(stored["metrics"], now)
+        bad = [d for d in diffs if not d.ok]
+        moved = [d for d in diffs if d.moved and d.ok]
+        passed &= not bad and not missing
+        lines.append(f"{paper}: {len(diffs)} metrics, {len(bad)} beyond tolerance, "
+                     f"{len(moved)} moved within it, {len(missing)} missing or new")
+        if bad or moved:
+            lines.append(f"  {'metric':52s} {'baseline':>14s} {'now':>14s} {'rel':>9s}")
+            for d in bad + moved:
+                rel = abs(d.now - d.baseline) / max(abs(d.baseline), 1e-300)
+                lines.append(f"  {d.path:52s} {d.baseline:14.7g} {d.now:14.7g} {rel:9.1e}"
+                             + ("  REGRESSION" if not d.ok else ""))
+        for p in missing:
+            lines.append(f"  {p}: only in the {'baseline' if p in stored['metrics'] else 'run'}")
+    return passed, "\n".join(lines)
