@@ -7,13 +7,7 @@ plugin entry points, so registration is explicit here.
 """
 import gymnasium
 
-from scenarios.experiments import SCENARIO_PAPER
-
-
-
-def env_id(scenario: str) -> str:
-    """Gymnasium id of a scenario name: ship-sway-rotary -> aligngym/ShipSwayRotary-v0."""
-    return "aligngym/" + "".join(part.capitalize() for part in scenario.split("-")) + "-v0"
+from scenarios.registry import SCENARIO_PAPER, env_id
 
 
 # Scenarios with an alignment pipeline behind the env (the vehicle scenarios' filters,

@@ -1,16 +1,17 @@
-"""The ``aligngym`` command line."""
+"""The ``aligngym`` command line.
+
+Imports stay inside the commands: help, version and option errors answer without
+loading MuJoCo, SciPy or the estimators.
+"""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from typing import NoReturn, Sequence
 
-import numpy as np
-
-from models.attitude import quat_to_euler
-from models.units import arcsec, deg
-from scenarios.config import ConfigError, load_scenario, scenario_names
+from scenarios.registry import PAPERS, SCENARIO_PAPER, scenario_names
 
 
 class _Parser(argparse.ArgumentParser):
@@ -20,13 +21,30 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+class _Version(argparse.Action):
+    """--version: the installed package's version (read only when asked)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="print the version and exit"):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from importlib.metadata import PackageNotFoundError, version
+        try:
+            text = version("aligngym")
+        except PackageNotFoundError:
+            text = "unknown (not installed)"
+        print(f"aligngym {text}")
+        parser.exit(0)
+
+
 def _positive_float(field: str):
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{field} must be a number, got {text!r}") from None
-        if not (np.isfinite(value) and value > 0.0):
+        if not (math.isfinite(value) and value > 0.0):
             raise argparse.ArgumentTypeError(f"{field} must be > 0, got {text}")
         return value
     return parse
@@ -42,46 +60,68 @@ def _seed(text: str) -> int:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _bench_epilog() -> str:
+    """Papers, filters and scenarios ``bench`` knows (imports the filter catalogue)."""
+    from estimators.filters import filter_names
+    return ("papers: " + ", ".join(PAPERS) + "\nfilters: " + ", ".join(filter_names())
+            + "\nscenarios with a pipeline: "
+            + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
+            + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
+            "ship-prescribed or ship-waves for paper003, static-platform for paper002")
+
+
+def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
+    """The parser; bench_details: list the filters in ``bench --help`` (imports them)."""
     parser = _Parser(prog="aligngym", description="SINS initial-alignment scenario testbed")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser.add_argument("--version", action=_Version)
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser, metavar="COMMAND")
 
     sim = sub.add_parser("simulate", help="simulate one episode and write its data (.npz)")
     sim.add_argument("scenario", help="scenario name (" + ", ".join(scenario_names())
                      + ") or a .toml file")
     sim.add_argument("--duration", type=_positive_float("--duration"), metavar="S",
                      help="run length, s (default: the scenario's)")
-    sim.add_argument("--seed", type=_seed, default=0, metavar="N", help="episode seed (>= 0)")
+    sim.add_argument("--seed", type=_seed, default=0, metavar="N",
+                     help="episode seed (>= 0; default: 0)")
     sim.add_argument("--ideal", action="store_true", help="error-free sensors")
     sim.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ",
                      help="IMU output rate, Hz (default: the scenario's)")
-    sim.add_argument("--out", required=True, metavar="FILE.npz", help="output file")
+    sim.add_argument("--out", required=True, metavar="FILE.npz",
+                     help="output file (arrays and units: README, Data files)")
 
     fid = sub.add_parser("fidelity", help="check the truth: strapdown from the true state on "
                          "ideal sensors must track it")
     fid.add_argument("scenario", help="scenario name or .toml file")
-    fid.add_argument("--duration", type=_positive_float("--duration"), metavar="S")
-    fid.add_argument("--seed", type=_seed, default=0, metavar="N")
-    fid.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ")
-    bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison")
-    bench.add_argument("paper", choices=["paper002", "paper003"],
-                       help="which paper's experiment")
+    fid.add_argument("--duration", type=_positive_float("--duration"), metavar="S",
+                     help="run length, s (default: the scenario's)")
+    fid.add_argument("--seed", type=_seed, default=0, metavar="N",
+                     help="episode seed (>= 0; default: 0)")
+    fid.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ",
+                     help="IMU output rate, Hz (default: the scenario's)")
+    bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison",
+                           epilog=_bench_epilog() if bench_details else None,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    bench.add_argument("paper", choices=list(PAPERS), help="which paper's experiment")
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
                        help="Monte Carlo episodes (default: 100 for paper002, 50 for "
                        "paper003)")
     bench.add_argument("--setup", choices=["default", "paper"], default="default",
                        help="paper003: 'paper' reproduces the paper's setup (biases fixed "
-                       "in the hull frame, calm-sea R, fading factors on R; README)")
+                       "in the hull frame, calm-sea R, fading factors on R; README; "
+                       "default: default)")
     bench.add_argument("--scenario", metavar="NAME|FILE.toml",
                        help="scenario to run the paper's experiment on (default: the "
                        "paper's: static-large-azimuth for paper002, ship-sway-rotary for "
                        "paper003); a .toml may carry a [filter] table")
-    bench.add_argument("--seed", type=_seed, default=0, metavar="S", help="campaign seed")
+    bench.add_argument("--seed", type=_seed, default=0, metavar="S",
+                       help="campaign seed (default: 0)")
     bench.add_argument("--filters", help="comma-separated filter names (default: "
                        "ekf,ukf,sghkf-2,sghkf-4 for paper002; kf,sakf,makf,imakf for "
                        "paper003)")
-    bench.add_argument("--out", metavar="DIR", help="directory for tables, series and plots")
-    bench.add_argument("--json", metavar="FILE", help="write the summary as JSON")
+    bench.add_argument("--out", metavar="DIR", help="directory for results.csv, coarse.csv, "
+                       "timeseries.npz, the plots and the per-episode files (default: none)")
+    bench.add_argument("--json", metavar="FILE",
+                       help="write the summary as JSON (default: none)")
     bench.add_argument("--resume", action="store_true",
                        help="reuse the episodes already finished in --out")
     bench.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
@@ -91,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
     reg.add_argument("--papers", default="paper002,paper003",
                      help="comma-separated papers (default: paper002,paper003)")
     reg.add_argument("--update", action="store_true",
-                     help="store this run's metrics as the new baselines")
+                     help="store this run's metrics as the new baselines (default: compare)")
     reg.add_argument("--baselines", metavar="DIR",
                      help="baseline directory (default: tests/baselines of the checkout)")
     reg.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
@@ -117,6 +157,7 @@ DEFAULT_EPISODES = {"paper002": 100, "paper003": 50}
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from scenarios.campaign import run_campaign
+    from scenarios.config import ConfigError
     from scenarios.experiments import experiment
     from scenarios.report import format_tables, write_outputs
 
@@ -142,6 +183,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from models.attitude import quat_to_euler
+    from models.units import deg
+    from scenarios.config import load_scenario
     from scenarios.simulate import simulate
 
     config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate)
@@ -161,6 +205,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_fidelity(args: argparse.Namespace) -> int:
+    from models.units import arcsec
+    from scenarios.config import load_scenario
     from scenarios.fidelity import fidelity_errors
 
     config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate)
@@ -186,7 +232,14 @@ def _cmd_regress(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(bench_details="bench" in argv and ("-h" in argv or "--help" in argv))
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    from scenarios.config import ConfigError
+
     try:
         if args.command == "simulate":
             return _cmd_simulate(args)

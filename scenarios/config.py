@@ -12,6 +12,7 @@ from models.platform import StaticPlatformMotion
 from models.ship import ShipSwayMotion
 from models.waves import WaveShipMotion
 from models.units import arcsec, deg
+from scenarios.registry import DATA_DIR, scenario_names  # noqa: F401  (re-exported)
 from sensors.encoder import GimbalEncoderSpec
 from sensors.gps import GPS_PRESETS, GpsSpec
 from sensors.imu import IMU_PRESETS, ImuSpec
@@ -22,7 +23,6 @@ WORLDS = ("car", "ship-prescribed", "ship-waves", "static-platform")
 PHYSICS_RATE = {"car": 500.0, "ship-waves": 500.0}
 """MuJoCo rates of the dynamic worlds, Hz; their IMU rate must divide it."""
 
-DATA_DIR = Path(__file__).parent / "data"
 
 # Key suffix -> factor to SI, longest suffix first.
 _UNIT_SUFFIXES = (("_deg_s", deg), ("_arcsec", arcsec), ("_deg", deg), ("_hz", 1.0),
@@ -31,11 +31,6 @@ _UNIT_SUFFIXES = (("_deg_s", deg), ("_arcsec", arcsec), ("_deg", deg), ("_hz", 1
 
 class ConfigError(ValueError):
     """An invalid scenario or option; the message names the field and the allowed range."""
-
-
-def scenario_names() -> list[str]:
-    """Names of the scenario files shipped with the package."""
-    return sorted(p.stem for p in DATA_DIR.glob("*.toml"))
 
 
 def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:

@@ -6,14 +6,11 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from scenarios.config import ConfigError
+from scenarios.registry import PAPERS, SCENARIO_PAPER  # noqa: F401  (re-exported)
 
 if TYPE_CHECKING:
     from scenarios.campaign import Experiment
 
-PAPERS = ("paper002", "paper003")
-SCENARIO_PAPER = {"ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003",
-                  "static-large-azimuth": "paper002"}
-"""Shipped scenarios with an alignment pipeline (the env is registered for these)."""
 
 
 SETUPS = ("default", "paper")

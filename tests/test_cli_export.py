@@ -107,3 +107,28 @@ def test_imu_rate_option_changes_sample_count(tmp_path):
                  "--out", str(out)]) == 0
     f = np.load(out)
     assert f["imu_t"].size == 400 and f["t"].size == 401
+
+
+def test_cli_module_loads_no_physics_or_estimators():
+    """Help, version and option errors answer without MuJoCo, SciPy, numba or the
+    estimators (imports stay inside the commands)."""
+    heavy = ("mujoco", "scipy", "numba", "matplotlib", "estimators", "models")
+    code = ("import sys, scenarios.cli; "
+            f"print(sorted(m for m in {heavy!r} if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_usage_version_and_bench_help(capsys):
+    assert main([]) == 0
+    assert "usage: aligngym" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.startswith("aligngym ")
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "--help"])
+    out = capsys.readouterr().out
+    assert stop.value.code == 0
+    for name in ("paper002", "kf-sway", "sghkf-N", "ship-waves-rotary (paper003)"):
+        assert name in out
