@@ -341,10 +341,17 @@ def format_fine_table(result: CampaignResult, start: str, title: str | None = No
     return "\n".join(lines)
 
 
+EXECUTORS = ("local", "ray")
+
+
 def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
-                resume: bool, workers: int, progress: bool = True) -> list[PreparedEpisode]:
-    """Prepare the episodes in parallel; each is saved as soon as it finishes. With
-    resume, episodes already on disk are loaded instead."""
+                resume: bool, workers: int, progress: bool = True, executor: str = "local",
+                address: str | None = None) -> list[PreparedEpisode]:
+    """Prepare the episodes in parallel, in local processes or as Ray tasks
+    (``executor``; ``address``: a Ray cluster's, None starts a local instance with
+    ``workers`` CPUs); each episode is saved by this process as soon as it arrives, so
+    an interrupted campaign keeps its finished episodes whichever executor ran them.
+    With resume, episodes already on disk are loaded instead."""
     from tqdm import tqdm
 
     episode_dir = out_dir / "episodes" if out_dir is not None else None
@@ -366,7 +373,9 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
         done[s] = episode
         bar.update()
 
-    if workers <= 1 or len(todo) <= 1:
+    if executor == "ray":
+        _prepare_on_ray(experiment, todo, finish, workers, address)
+    elif workers <= 1 or len(todo) <= 1:
         for s in todo:
             finish(s, experiment.prepare_episode(s))
     else:
@@ -378,11 +387,39 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
     return [done[s] for s in seeds]
 
 
+def _prepare_task(experiment: Experiment, seed: int) -> PreparedEpisode:
+    return experiment.prepare_episode(seed)
+
+
+def _prepare_on_ray(experiment: Experiment, seeds: list[int], finish, workers: int,
+                    address: str | None) -> None:
+    """One Ray task per episode; results are handed to finish as they complete. A task
+    whose worker dies is retried by Ray (3 times); if it still fails the campaign stops
+    with Ray's error, the episodes already finished being on disk."""
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError("--executor ray needs Ray: pip install -e '.[ray]'") from None
+    if not ray.is_initialized():
+        if address is None:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address, log_to_driver=False)
+    task = ray.remote(max_retries=3)(_prepare_task)
+    pending = {task.remote(experiment, s): s for s in seeds}
+    while pending:
+        ready, _ = ray.wait(list(pending), num_returns=1)
+        for ref in ready:
+            finish(pending.pop(ref), ray.get(ref))
+
+
 def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
                  filters: list[str] | None = None, out_dir: str | Path | None = None,
                  resume: bool = False, workers: int | None = None,
-                 progress: bool = True) -> CampaignResult:
-    """Run an experiment's campaign; see the module docstring."""
+                 progress: bool = True, executor: str = "local",
+                 address: str | None = None) -> CampaignResult:
+    """Run an experiment's campaign; see the module docstring. executor: "local"
+    (processes) or "ray" (tasks on a local Ray instance, or the cluster at address)."""
     from tqdm import tqdm
 
     filters = list(filters or experiment.default_filters)
@@ -390,12 +427,17 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     experiment.check(experiment.scenario_config())
     if episodes < 1:
         raise ConfigError(f"--episodes = {episodes} must be >= 1")
+    if executor not in EXECUTORS:
+        raise ConfigError(f"--executor {executor!r} is unknown; valid: " + ", ".join(EXECUTORS))
+    if address is not None and executor != "ray":
+        raise ConfigError("--address needs --executor ray")
     workers = workers or os.cpu_count() or 1
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         _check_manifest(out, experiment, seed, resume)
     seeds = episode_seeds(seed, episodes)
-    prepared = prepare_all(experiment, seeds, out, resume, workers, progress)
+    prepared = prepare_all(experiment, seeds, out, resume, workers, progress, executor,
+                           address)
     result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared))
     jobs = [(f, s) for f in filters for s in experiment.starts]
     for name, start in tqdm(jobs, disable=not progress, desc="filters"):

@@ -125,7 +125,14 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--resume", action="store_true",
                        help="reuse the episodes already finished in --out")
     bench.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
-                       help="parallel processes (default: all cores)")
+                       help="parallel processes, or CPUs of a local Ray instance "
+                       "(default: all cores)")
+    bench.add_argument("--executor", choices=["local", "ray"], default="local",
+                       help="where episodes are prepared: local processes, or Ray tasks "
+                       "(pip install -e '.[ray]'; default: local)")
+    bench.add_argument("--address", metavar="ADDR",
+                       help="with --executor ray: the cluster to join ('auto', "
+                       "'ray://HOST:10001'; default: start a local instance)")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
                          "its stored baseline; exit 1 when a metric moved beyond tolerance")
     reg.add_argument("--papers", default="paper002,paper003",
@@ -172,7 +179,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     episodes = args.episodes or DEFAULT_EPISODES[args.paper]
     start = time.perf_counter()
     result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
-                          out_dir=args.out, resume=args.resume, workers=args.workers)
+                          out_dir=args.out, resume=args.resume, workers=args.workers,
+                          executor=args.executor, address=args.address)
     elapsed = time.perf_counter() - start
     print(format_tables(result))
     for path in write_outputs(result, args.out, args.json):
