@@ -25,7 +25,7 @@ def episode_return(env: gym.Env, action: np.ndarray, seed: int) -> float:
         _, reward, terminated, truncated, _ = env.step(action)
         total += reward
         if terminated or truncated:
-            return total / env.unwrapped._run.epochs
+            return total / env.unwrapped.episode_steps
 
 
 def mean_return(env: gym.Env, action: np.ndarray, seeds: list[int]) -> float:

@@ -16,8 +16,10 @@ ENV_SCENARIOS = sorted(SCENARIO_PAPER)
 ENV_IDS = [env_id(name) for name in ENV_SCENARIOS]
 for _name, _id in zip(ENV_SCENARIOS, ENV_IDS):
     if _id not in gymnasium.registry:
+        # The default episode: 600 s of fine alignment at 1 s epochs (an env made with
+        # another episode_length truncates itself at its own length).
         gymnasium.register(id=_id, entry_point="scenarios.env:AlignmentEnv",
-                           kwargs={"scenario": _name})
+                           kwargs={"scenario": _name}, max_episode_steps=600)
 
 
 def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0, **kwargs):

@@ -100,6 +100,7 @@ class AlignmentEnv(gym.Env):
         self._renderer = None
         self._world = None
         self._run: AlignmentRun | None = None
+        self._over = False
         self._frames: list[np.ndarray] = []
 
     # --- episode ------------------------------------------------------------------------
@@ -142,6 +143,7 @@ class AlignmentEnv(gym.Env):
             [self._episode], self._start_error, filter_entry(self.estimator).model))
         self._observed = self.experiment.observed_states(self._run.model.layout)
         self._episode_seed = episode_seed
+        self._over = False
         self._world = None
         self._frames = []
         if self.render_mode == "rgb_array" and self.video_path:
@@ -149,10 +151,29 @@ class AlignmentEnv(gym.Env):
         return self._observation(), {"episode_seed": episode_seed,
                                      "start_error_arcmin": self._start_error / arcmin}
 
+    @property
+    def episode_steps(self) -> int:
+        """Steps (filter epochs) of an episode: episode_length / epoch_length."""
+        return int(round(self.experiment.fine_duration / self.experiment.filter_step))
+
     def step(self, action):
+        """One filter epoch with the action's tuning. Actions outside [-1, 1] are
+        clipped to it; a wrong shape or a non-finite value raises ValueError. The episode
+        ends with terminated = True when the filter diverges, or with truncated = True at
+        its fixed length (episode_length / epoch_length steps); step() after the end
+        raises RuntimeError until reset()."""
         if self._run is None:
             raise RuntimeError("call reset() before step()")
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        if self._over:
+            raise RuntimeError("the episode is over; call reset() before step()")
+        a = np.asarray(action, dtype=float)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape} "
+                             f"(log10 scales of Q_gyro, Q_accel, R{', floor' if self._fading else ''}"
+                             f" in [-1, 1]), got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {a.tolist()}")
+        a = np.clip(a, -1.0, 1.0)
         if self._fading:
             self._filter.adaptation.retune(floor=10.0 ** a[3])
         run = self._run
@@ -164,11 +185,13 @@ class AlignmentEnv(gym.Env):
         error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k])
         reward = -min(float(np.linalg.norm(error / REWARD_SCALE)), REWARD_CAP)
         diverged = bool(run.filt.health.diverged[0])
-        terminated = run.done or diverged
+        terminated = diverged
+        truncated = run.done and not diverged
+        self._over = terminated or truncated
         info = {"error_arcmin": error / arcmin, "time_s": float(run.t[k] -
                                                                 run.t[0]),
                 "diverged": diverged}
-        if terminated:
+        if self._over:
             result = run.result()
             analysed = campaign.analyse_run(self.estimator, "env", result, [self._episode],
                                             self.experiment)
@@ -176,9 +199,9 @@ class AlignmentEnv(gym.Env):
                                                        self.experiment.rms_window)
         if self.render_mode == "rgb_array" and self.video_path:
             self._frames.append(self.render())
-            if terminated:
+            if self._over:
                 self._write_video()
-        return self._observation(), reward, terminated, False, info
+        return self._observation(), reward, terminated, truncated, info
 
     def _observation(self) -> np.ndarray:
         run, filt = self._run, self._filter

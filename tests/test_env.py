@@ -34,9 +34,9 @@ def rollout(env_id, seed, steps=12, **kwargs):
     env.action_space.seed(seed)
     out = [obs]
     for _ in range(steps):
-        obs, reward, terminated, _, _ = env.step(env.action_space.sample())
+        obs, reward, terminated, truncated, _ = env.step(env.action_space.sample())
         out += [obs, np.float32(reward)]
-        if terminated:
+        if terminated or truncated:
             break
     env.close()
     return out
@@ -85,7 +85,7 @@ def test_rgb_array_frames_and_video(env_id, tmp_path):
     frame = env.render()
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
     assert frame.std() > 5.0  # not blank
-    while not env.step(np.zeros(env.action_space.shape, np.float32))[2]:
+    while not any(env.step(np.zeros(env.action_space.shape, np.float32))[2:4]):
         pass
     later = env.render()
     if "Static" not in env_id:
@@ -98,14 +98,44 @@ def test_observation_has_no_truth_and_info_has_it():
     env = gym.make(ENV_IDS[0], **SHORT)
     obs, _ = env.reset(seed=4)
     assert env.observation_space.contains(obs)
-    obs, reward, terminated, _, info = env.step(np.zeros(3, np.float32))
+    obs, reward, terminated, truncated, info = env.step(np.zeros(3, np.float32))
     assert "error_arcmin" in info and reward <= 0
     err = info["error_arcmin"]
     expected = -min(np.linalg.norm(err / np.array([1.0, 1.0, 10.0])), 100.0)
     assert reward == pytest.approx(expected)
-    while not terminated:
-        obs, reward, terminated, _, info = env.step(np.zeros(3, np.float32))
+    while not (terminated or truncated):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(3, np.float32))
     assert {"final_phi_U_arcmin", "nees_mean", "diverged"} <= set(info["metrics"])
+
+
+def test_env_contract():
+    """Registered with max_episode_steps; the fixed length ends as truncated (not
+    terminated) after episode_steps steps; step() after the end raises until reset();
+    wrong-shaped and non-finite actions raise ValueError naming the shape; out-of-range
+    actions are clipped (an action of 5 acts as 1); reset() without a seed works."""
+    assert gym.spec(ENV_IDS[0]).max_episode_steps == 600
+    env = gym.make(ENV_IDS[0], estimator="kf", **SHORT)
+    env.reset(seed=2)
+    steps, truncated, terminated = 0, False, False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, _ = env.step(np.zeros(3, np.float32))
+        steps += 1
+    assert truncated and not terminated and steps == env.unwrapped.episode_steps == 20
+    with pytest.raises(RuntimeError, match="episode is over"):
+        env.unwrapped.step(np.zeros(3))
+    base = env.unwrapped
+    base.reset(seed=2)
+    with pytest.raises(ValueError, match=r"shape \(3,\)"):
+        base.step(np.zeros(4))
+    with pytest.raises(ValueError, match="finite"):
+        base.step(np.array([0.0, np.nan, 0.0]))
+    clipped = base.step(np.array([5.0, 5.0, 5.0]))
+    base.reset(seed=2)
+    at_one = base.step(np.ones(3))
+    np.testing.assert_array_equal(clipped[0], at_one[0])
+    obs, info = base.reset()
+    assert base.observation_space.contains(obs) and "episode_seed" in info
+    env.close()
 
 
 def test_evaluate_equals_campaign():
