@@ -27,6 +27,52 @@ PHYSICS_RATE = {"car": 500.0, "ship-waves": 500.0}
 # Key suffix -> factor to SI, longest suffix first.
 _UNIT_SUFFIXES = (("_deg_s", deg), ("_arcsec", arcsec), ("_deg", deg), ("_hz", 1.0),
                   ("_m", 1.0), ("_s", 1.0))
+_UNIT_NAMES = {"_deg_s": "deg/s", "_arcsec": "arcsec", "_deg": "deg", "_hz": "Hz",
+               "_m": "m", "_s": "s"}
+
+UNITS = {
+    # origin, run
+    "latitude": "_deg", "longitude": "_deg", "height": "_m", "duration": "_s",
+    "imu_rate": "_hz",
+    # encoder
+    "resolution": "_arcsec", "offset_sigma": "_arcsec",
+    # prescribed ship
+    "yaw_mean": "_deg", "yaw_amplitude": "_deg", "yaw_period": "_s", "yaw_phase": "_deg",
+    "pitch_amplitude": "_deg", "pitch_period": "_s", "pitch_phase": "_deg",
+    "roll_amplitude": "_deg", "roll_period": "_s", "roll_phase": "_deg",
+    "linear_amplitude": "_m", "linear_period": "_s", "linear_phase": "_deg",
+    "lever_arm_b": "_m", "gimbal_outer_rate": "_deg_s", "gimbal_inner_rate": "_deg_s",
+    # wave-driven ship
+    "significant_wave_height": "_m", "peak_period": "_s", "peak_enhancement": "",
+    "wave_direction": "_deg", "components": "", "heave_period": "_s",
+    "damping_ratio": "", "heading": "_deg",
+    # car (speed m/s and accel m/s^2 carry no suffix)
+    "track": "", "radius": "_m", "speed": "", "start_time": "_s", "stop_time": "_s",
+    "accel": "", "roughness_rms": "_m", "imu_offset_b": "_m", "gps_antenna_b": "_m",
+    # static platform
+    "yaw": "_deg", "pitch": "_deg", "roll": "_deg",
+    # GPS (velocity_sigma and heading_min_speed in m/s, no suffix)
+    "rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
+    "velocity_sigma": "", "heading_min_speed": "", "latency": "_s", "outages": "_s",
+    # odometer
+    "pulses_per_rev": "", "nominal_radius": "_m", "scale_error": "",
+    "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
+    # imu, filter
+    "preset": "", "bias_frame": "", "euler_sigma": "_deg", "initial_covariance": "",
+}
+"""Each parameter's unit suffix in scenario files ("": none); a key's suffix is part of
+its name, so pitch_period_deg is an error, not a period in degrees."""
+
+VECTORS = ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b",
+           "imu_offset_b", "gps_antenna_b", "euler_sigma")
+"""Parameters of 3 values (E, N, U or R, F, U)."""
+STRINGS = ("preset", "bias_frame", "track")
+INTEGERS = ("components", "pulses_per_rev")
+FREE = ("outages", "initial_covariance")
+"""Checked by their users: (start, end) windows; a matrix."""
+
+SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter")
+TOP_KEYS = ("name", "paper", "world")
 
 
 class ConfigError(ValueError):
@@ -34,29 +80,79 @@ class ConfigError(ValueError):
 
 
 def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
-    """Strip unit suffixes from keys and convert their values to SI."""
+    """Strip unit suffixes from keys and convert their values to SI; a known parameter
+    must carry its own unit suffix (``UNITS``), numbers must be finite and not booleans."""
     out: dict[str, Any] = {}
     for key, value in table.items():
-        for suffix, factor in _UNIT_SUFFIXES:
-            if key.endswith(suffix):
-                name = key[: -len(suffix)]
-                try:
-                    value = _scale(value, factor)
-                except (TypeError, ValueError):
-                    raise ConfigError(f"{section}.{key}: expected a number or a list of numbers,"
-                                      f" got {value!r}") from None
+        name, factor, written = key, 1.0, ""
+        for suffix, scale in _UNIT_SUFFIXES:
+            if key.endswith(suffix) and key[: -len(suffix)] in UNITS:
+                name, factor, written = key[: -len(suffix)], scale, suffix
                 break
-        else:
-            name = key
-        out[name] = value
+        if name in UNITS and UNITS[name] != written and not (
+                written == "" and isinstance(value, str)):   # e.g. linear_phase = "random"
+            unit = UNITS[name]
+            raise ConfigError(
+                f"{section}.{key}: {name} "
+                + (f"is in {_UNIT_NAMES[unit]}; write {name}{unit}" if unit else
+                   f"takes no unit suffix; write {name}"))
+        if name not in UNITS:   # unknown: the section's check names it
+            for suffix, _ in _UNIT_SUFFIXES:
+                if key.endswith(suffix):
+                    name = key[: -len(suffix)]
+                    break
+        try:
+            out[name] = _scale(value, factor) if written else _checked(value)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"{section}.{key}: {exc}") from None
+        _check_kind(f"{section}.{key}", name, out[name])
     return out
+
+
+def _check_kind(field: str, name: str, value: Any) -> None:
+    """A known parameter's value has its kind: 3 numbers, a string, an integer or a
+    number (``VECTORS``, ``STRINGS``, ``INTEGERS``; ``FREE`` ones are checked later)."""
+    if name not in UNITS or name in FREE:
+        return
+    if name == "linear_phase" and value == "random":
+        return
+    if name in VECTORS:
+        ok = (isinstance(value, tuple) and len(value) == 3
+              and all(isinstance(v, float) for v in value))
+        expected = "3 numbers"
+    elif name in STRINGS:
+        ok, expected = isinstance(value, str), "a string"
+    elif name in INTEGERS:
+        ok, expected = isinstance(value, int) and not isinstance(value, bool), "an integer"
+    else:
+        ok, expected = isinstance(value, (int, float)) and not isinstance(value, bool), \
+            "a number"
+    if not ok:
+        raise ConfigError(f"{field} must be {expected}, got {value!r}")
 
 
 def _scale(value: Any, factor: float) -> Any:
     """A number, or nested lists of numbers, times factor (lists become tuples)."""
     if isinstance(value, list):
         return tuple(_scale(v, factor) for v in value)
-    return float(value) * factor
+    return _number(value) * factor
+
+
+def _number(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"expected a number or a list of numbers, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"must be finite, got {value!r}")
+    return float(value)
+
+
+def _checked(value: Any) -> Any:
+    """A value without unit: strings pass; numbers (in lists) must be finite, not bool."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list):
+        return tuple(_checked(v) for v in value)
+    return value if isinstance(value, int) and not isinstance(value, bool) else _number(value)
 
 
 def _check_range(field: str, value: float, low: float, high: float, unit: str,
@@ -159,7 +255,9 @@ class ScenarioConfig:
 def load_scenario(name_or_path: str) -> ScenarioConfig:
     """Load a shipped scenario by name, or a TOML file by path."""
     path = Path(name_or_path)
-    if not (path.suffix == ".toml" and path.is_file()):
+    if path.suffix == ".toml" and not path.is_file():
+        raise ConfigError(f"scenario file {name_or_path} does not exist")
+    if path.suffix != ".toml":
         if name_or_path not in scenario_names():
             raise ConfigError(f"unknown scenario {name_or_path!r}; valid choices: "
                               + ", ".join(scenario_names()))
@@ -172,6 +270,14 @@ def load_scenario(name_or_path: str) -> ScenarioConfig:
 
 
 def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
+    unknown = sorted(set(raw) - set(SECTIONS) - set(TOP_KEYS))
+    if unknown:
+        raise ConfigError(f"{source}: {unknown[0]!r} is neither a key ("
+                          + ", ".join(TOP_KEYS) + ") nor a table ([" + "], [".join(SECTIONS)
+                          + "])")
+    for key in TOP_KEYS:
+        if key in raw and not isinstance(raw[key], str):
+            raise ConfigError(f"{source}: {key} must be a string, got {raw[key]!r}")
     def section(name: str, required: bool = True) -> dict[str, Any]:
         if name not in raw:
             if required:
@@ -181,7 +287,9 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
             raise ConfigError(f"{source}: [{name}] must be a table")
         return _to_si(raw[name], name)
 
-    world = str(raw.get("world", ""))
+    if "world" not in raw:
+        raise ConfigError(f"{source}: missing key world; valid choices: " + ", ".join(WORLDS))
+    world = raw["world"]
     if world not in WORLDS:
         raise ConfigError(f"world = {world!r} is unknown; valid choices: " + ", ".join(WORLDS))
     origin, run, imu, motion = (section(s) for s in ("origin", "run", "imu", "motion"))
