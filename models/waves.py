@@ -3,13 +3,13 @@
 The hull is a MuJoCo free body. Each physics step the hydrodynamic generalised forces are
 applied at its centre of mass (``xfrc_applied``): linear hydrostatic restoring in heave,
 roll and pitch towards the instantaneous wave surface at the hull (elevation and slopes
-of a JONSWAP sea, Froude-Krylov long-wave approximation), linear radiation damping, weak
-surge/sway/yaw restoring (mooring or dynamic positioning) and a heading autopilot. The
-stiffnesses come from the natural periods, so the hull's response has the paper's
-character (periods 5-8 s, degrees of roll and pitch, decimetres of heave) with the
-randomness of a real sea. The rotary IMU sits on the double-axis gimbal at the lever arm;
-MuJoCo's discrete steps are recorded and ``models.world.discrete_imu`` makes the
-increments.
+of a JONSWAP sea at the mooring point, Froude-Krylov long-wave approximation), linear
+radiation damping, weak surge/sway/yaw restoring (mooring or dynamic positioning) and a
+heading autopilot. The stiffnesses come from the natural periods, so the hull's response
+has the paper's character (periods 5-8 s, degrees of roll and pitch, decimetres of
+heave) with the randomness of a real sea. The rotary IMU sits on the double-axis gimbal
+at the lever arm; MuJoCo's discrete steps are recorded and ``models.world.SmoothRun``
+makes the truth and the increments from them.
 """
 from __future__ import annotations
 
@@ -194,11 +194,17 @@ class WaveShipWorld:
         return self.model.body_inertia[self._hull].copy() * (
             self.model.body_subtreemass[self._hull] / self.model.body_mass[self._hull])
 
-    def wave_at(self, t: float, xy: np.ndarray) -> tuple[float, np.ndarray]:
-        """Elevation (m) and slope (dη/dE, dη/dN) of the sea at plane point xy, time t."""
+    def wave_at(self, t: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Elevation (m) and slope (dη/dE, dη/dN) of the sea at plane point xy (2,) m,
+        times t (N,) s: (N,) and (N, 2)."""
         a, w, k, phase = self.sea
-        arg = k * (xy @ self._direction) - w * t + phase
-        return float(np.sum(a * np.cos(arg))), -float(np.sum(a * k * np.sin(arg))) * self._direction
+        t = np.asarray(t, dtype=float)
+        eta, rise = np.empty(t.size), np.empty(t.size)
+        for start in range(0, t.size, 20000):      # blocks of (20000, components)
+            arg = k * (xy @ self._direction) - np.outer(t[start:start + 20000], w) + phase
+            eta[start:start + 20000] = np.cos(arg) @ a
+            rise[start:start + 20000] = -(np.sin(arg) @ (a * k))
+        return eta, rise[:, None] * self._direction
 
     def run(self, duration: float) -> DiscreteRun:
         """Float for duration (s), recording every physics step; the gimbal turns at its
@@ -214,6 +220,9 @@ class WaveShipWorld:
         qvel_hist = np.empty((n + 2, m.nv))
         rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
         qpos, qvel, xfrc = d.qpos, d.qvel, d.xfrc_applied[self._hull]
+        # The sea at the mooring point (the plane origin), where the centre of mass stays
+        # (no horizontal wave force: it moves by micrometres), for every step at once.
+        eta, slope = self.wave_at(np.arange(n + 1) * dt, np.zeros(2))
         for k in range(n + 1):
             t = k * dt
             for i in range(2):  # kinematic gimbal: angle = rate t exactly
@@ -223,7 +232,7 @@ class WaveShipWorld:
             qvel_hist[k] = qvel
             mujoco.mj_step1(m, d)
             if k % self.force_period == 0:
-                xfrc[:] = self._hydrodynamic_wrench(t)
+                xfrc[:] = self._hydrodynamic_wrench(eta[k], slope[k])
             mujoco.mj_step2(m, d)
         qvel_hist[n + 1] = qvel
         return DiscreteRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
@@ -231,16 +240,16 @@ class WaveShipWorld:
                            omega=qvel_hist[:, 3:6],
                            imu_offset_b=np.asarray(motion.lever_arm_b, dtype=float))
 
-    def _hydrodynamic_wrench(self, t: float) -> np.ndarray:
+    def _hydrodynamic_wrench(self, eta: float, slope: np.ndarray) -> np.ndarray:
         """Force and torque (6,) in world axes at the hull's centre of mass, from the
-        state whose kinematics MuJoCo has computed (``mj_step1`` or ``mj_forward``)."""
+        state whose kinematics MuJoCo has computed (``mj_step1`` or ``mj_forward``) and
+        the sea's elevation eta (m) and slope (2,) at the hull."""
         d = self.data
         C = d.xmat[self._hull].reshape(3, 3)       # hull to plane
         pitch = math.asin(max(-1.0, min(1.0, C[2, 1])))   # PSINS Euler angles
         roll = math.atan2(-C[2, 0], C[2, 2])
         yaw = math.atan2(-C[0, 1], C[1, 1])
         centre = d.xipos[self._hull]
-        eta, slope = self.wave_at(t, centre[:2])
         v = d.qvel[0:3]
         w_b = d.qvel[3:6]
         # Wave slopes seen along the body's right (x) and forward (y) axes.
