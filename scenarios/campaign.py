@@ -417,7 +417,7 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
                  filters: list[str] | None = None, out_dir: str | Path | None = None,
                  resume: bool = False, workers: int | None = None,
                  progress: bool = True, executor: str = "local",
-                 address: str | None = None) -> CampaignResult:
+                 address: str | None = None, force: bool = False) -> CampaignResult:
     """Run an experiment's campaign; see the module docstring. executor: "local"
     (processes) or "ray" (tasks on a local Ray instance, or the cluster at address)."""
     from tqdm import tqdm
@@ -434,7 +434,7 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     workers = workers or os.cpu_count() or 1
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
-        _check_manifest(out, experiment, seed, resume)
+        _check_manifest(out, experiment, seed, resume, force)
     seeds = episode_seeds(seed, episodes)
     prepared = prepare_all(experiment, seeds, out, resume, workers, progress, executor,
                            address)
@@ -446,9 +446,25 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     return result
 
 
-def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool) -> None:
-    out.mkdir(parents=True, exist_ok=True)
+def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
+                    force: bool = False) -> None:
+    """Create out, or check that it may be used: a directory holding a campaign needs
+    resume (the same experiment and seed) or force (its episode files are removed, so
+    no other seed's episodes mix in)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot create the directory ({exc.strerror})") from None
+    if not os.access(out, os.W_OK):
+        raise ConfigError(f"--out {out}: the directory is not writable")
     manifest = out / "campaign.json"
+    held = manifest.is_file() or any((out / "episodes").glob("seed_*.npz"))
+    if held and not (resume or force):
+        raise ConfigError(f"--out {out} holds a campaign; use --resume to continue it or "
+                          "--force to replace it")
+    if force and not resume:
+        for old in (out / "episodes").glob("seed_*.npz"):
+            old.unlink()
     current = {"paper": experiment.paper, "experiment": asdict(experiment), "seed": seed}
     current = json.loads(json.dumps(current))
     if resume and manifest.is_file():

@@ -124,6 +124,8 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        help="write the summary as JSON (default: none)")
     bench.add_argument("--resume", action="store_true",
                        help="reuse the episodes already finished in --out")
+    bench.add_argument("--force", action="store_true",
+                       help="replace the campaign an existing --out holds (default: refuse)")
     bench.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
                        help="parallel processes, or CPUs of a local Ray instance "
                        "(default: all cores)")
@@ -162,6 +164,24 @@ def _positive_int(field: str):
 DEFAULT_EPISODES = {"paper002": 100, "paper003": 50}
 
 
+def _check_writable(path_text: str, option: str) -> None:
+    """Before any work: the output file can be written (its directory exists or can be
+    made, and is writable; an existing file is writable)."""
+    import os
+    from pathlib import Path
+
+    from scenarios.config import ConfigError
+
+    path = Path(path_text)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"{option} {path}: cannot create {path.parent} "
+                          f"({exc.strerror})") from None
+    if path.is_dir() or not os.access(path if path.exists() else path.parent, os.W_OK):
+        raise ConfigError(f"{option} {path}: cannot write this file")
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from scenarios.campaign import run_campaign
     from scenarios.config import ConfigError
@@ -170,6 +190,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
+    if args.json:
+        _check_writable(args.json, "--json")
     exp = (experiment(args.paper, args.setup) if args.scenario is None
            else experiment(args.paper, args.setup, scenario=args.scenario))
     filters = (list(exp.default_filters) if args.filters is None
@@ -180,7 +202,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
                           out_dir=args.out, resume=args.resume, workers=args.workers,
-                          executor=args.executor, address=args.address)
+                          executor=args.executor, address=args.address, force=args.force)
     elapsed = time.perf_counter() - start
     print(format_tables(result))
     for path in write_outputs(result, args.out, args.json):

@@ -163,6 +163,30 @@ def test_resume_refuses_another_experiment(tmp_path):
                  "--seed", "5", "--resume", "--workers", "1"]) == 2
 
 
+def test_outputs_checked_before_any_work(tmp_path, capsys):
+    """An --out holding a campaign needs --resume or --force (which removes its episode
+    files: no other seed's episodes mix in); an unwritable --json or --out is refused
+    in one line before any episode is simulated."""
+    out = tmp_path / "c"
+    base = ["bench", "paper003", "--episodes", "1", "--filters", "kf", "--workers", "1"]
+    assert main(base + ["--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(base + ["--out", str(out), "--seed", "5"]) == 2
+    assert "holds a campaign; use --resume" in capsys.readouterr().err
+    assert main(base + ["--out", str(out), "--seed", "5", "--force"]) == 0
+    from scenarios.campaign import episode_seeds
+    assert [p.name for p in (out / "episodes").glob("*.npz")] == [
+        f"seed_{episode_seeds(5, 1)[0]}.npz"]
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    capsys.readouterr()
+    assert main(base + ["--json", str(blocker / "s.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--json" in err[0]
+    assert main(base + ["--out", str(blocker / "d")]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
 def test_hull_frame_biases_are_not_modulated():
     """[imu] bias_frame = "hull": the sensed bias, turned back into the hull frame, is the
     drawn constant; in the sensor frame it averages out (the gimbal modulates it)."""
