@@ -78,7 +78,7 @@ def jonswap_density(motion: WaveShipMotion, w: np.ndarray) -> np.ndarray:
 
 def sea_band(motion: WaveShipMotion) -> tuple[float, float]:
     """The angular frequencies (rad/s) the synthesized sea spans: 0.5 to 3 peak
-    frequencies (~97 % of the JONSWAP energy)."""
+    frequencies (99 % of the JONSWAP energy for the shipped sea)."""
     wp = 2 * math.pi / motion.peak_period
     return 0.5 * wp, 3.0 * wp
 

@@ -277,7 +277,9 @@ class SmoothRun:
     the carrier origin follows a quintic spline through MuJoCo's positions (its mean
     velocity over each step is MuJoCo's). Attitudes integrate the smooth rotations from
     MuJoCo's first (``quat``); the IMU increments are Gauss-Legendre integrals (3 nodes a
-    step, exact to ~1e-15) of the smooth rate and specific force.
+    step; the quadrature is exact to ~1e-15) of the smooth rate and specific force. Within
+    a step the attitude is exp of the rate's integral, without the step's coning (~1e-12
+    rad; measured against MuJoCo's sensors: 6e-16 rad and 3e-11 m/s per 10 ms).
     """
 
     def __init__(self, run: DiscreteRun) -> None:

@@ -16,10 +16,11 @@ ENV_SCENARIOS = sorted(SCENARIO_PAPER)
 ENV_IDS = [env_id(name) for name in ENV_SCENARIOS]
 for _name, _id in zip(ENV_SCENARIOS, ENV_IDS):
     if _id not in gymnasium.registry:
-        # The default episode: 600 s of fine alignment at 1 s epochs (an env made with
-        # another episode_length truncates itself at its own length).
+        # No max_episode_steps: the length is an option (episode_length / epoch_length
+        # steps) and the env reports it as truncated itself; a registered limit would cut
+        # longer episodes short, before their metrics and video.
         gymnasium.register(id=_id, entry_point="scenarios.env:AlignmentEnv",
-                           kwargs={"scenario": _name}, max_episode_steps=600)
+                           kwargs={"scenario": _name})
 
 
 def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0, **kwargs):

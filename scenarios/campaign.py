@@ -395,18 +395,23 @@ def _prepare_on_ray(experiment: Experiment, seeds: list[int], finish, workers: i
                     address: str | None) -> None:
     """One Ray task per episode; results are handed to finish as they complete. A task
     whose worker dies is retried by Ray (3 times); if it still fails the campaign stops
-    with Ray's error, the episodes already finished being on disk."""
+    with Ray's error, the episodes already finished being on disk. An initialised Ray
+    (or RAY_ADDRESS) is used as it is: workers only size a local instance we start."""
+    if not seeds:                  # all resumed: nothing to run
+        return
     try:
         import ray
     except ImportError:
         raise ConfigError("--executor ray needs Ray: pip install -e '.[ray]'") from None
+    address = address or os.environ.get("RAY_ADDRESS")
     if not ray.is_initialized():
         if address is None:
             ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
         else:
             ray.init(address=address, log_to_driver=False)
     task = ray.remote(max_retries=3)(_prepare_task)
-    pending = {task.remote(experiment, s): s for s in seeds}
+    shared = ray.put(experiment)   # pickled once for all tasks
+    pending = {task.remote(shared, s): s for s in seeds}
     while pending:
         ready, _ = ray.wait(list(pending), num_returns=1)
         for ref in ready:
@@ -449,8 +454,8 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
 def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
                     force: bool = False) -> None:
     """Create out, or check that it may be used: a directory holding a campaign needs
-    resume (the same experiment and seed) or force (its episode files are removed, so
-    no other seed's episodes mix in)."""
+    resume (the same experiment and seed, from its campaign.json) or force (its episode
+    files, tables, series and plots are removed, so nothing of another seed mixes in)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -458,13 +463,15 @@ def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
     if not os.access(out, os.W_OK):
         raise ConfigError(f"--out {out}: the directory is not writable")
     manifest = out / "campaign.json"
-    held = manifest.is_file() or any((out / "episodes").glob("seed_*.npz"))
+    episodes = [p for p in (out / "episodes").glob("seed_*.npz")
+                if not p.name.endswith(".tmp.npz")]          # not half-written leftovers
+    held = manifest.is_file() or bool(episodes)
     if held and not (resume or force):
         raise ConfigError(f"--out {out} holds a campaign; use --resume to continue it or "
                           "--force to replace it")
-    if force and not resume:
-        for old in (out / "episodes").glob("seed_*.npz"):
-            old.unlink()
+    if resume and episodes and not manifest.is_file():
+        raise ConfigError(f"--resume: {out} has episode files but no campaign.json, so "
+                          "their experiment and seed are unknown; use --force to replace them")
     current = {"paper": experiment.paper, "experiment": asdict(experiment), "seed": seed}
     current = json.loads(json.dumps(current))
     if resume and manifest.is_file():
@@ -473,4 +480,10 @@ def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
         if saved != current:
             raise ConfigError(f"--resume: {manifest} was written by a different experiment "
                               "or seed; use a new --out directory")
-    manifest.write_text(json.dumps(current, indent=2))
+    if force and not resume:      # nothing of the old campaign survives to mix in
+        for old in [*(out / "episodes").glob("seed_*.npz"), *out.glob("*.csv"),
+                    *out.glob("*.png"), out / "timeseries.npz", manifest]:
+            old.unlink(missing_ok=True)
+    tmp = manifest.with_suffix(".tmp")
+    tmp.write_text(json.dumps(current, indent=2))
+    os.replace(tmp, manifest)      # atomic

@@ -265,9 +265,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(bench_details="bench" in argv and ("-h" in argv or "--help" in argv))
     args = parser.parse_args(argv)
-    if args.command is None:
+    if args.command is None:      # a usage error: the usage, and status 2
         parser.print_help()
-        return 0
+        return 2
     from scenarios.config import ConfigError
 
     try:

@@ -96,14 +96,11 @@ def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
                 f"{section}.{key}: {name} "
                 + (f"is in {_UNIT_NAMES[unit]}; write {name}{unit}" if unit else
                    f"takes no unit suffix; write {name}"))
-        if name not in UNITS:   # unknown: the section's check names it
-            for suffix, _ in _UNIT_SUFFIXES:
-                if key.endswith(suffix):
-                    name = key[: -len(suffix)]
-                    break
-        try:
+        if name in out:
+            raise ConfigError(f"{section}.{key}: {name} is given twice")
+        try:   # unknown keys keep their name as written: the section's check names it
             out[name] = _scale(value, factor) if written else _checked(value)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise ConfigError(f"{section}.{key}: {exc}") from None
         _check_kind(f"{section}.{key}", name, out[name])
     return out
@@ -141,7 +138,7 @@ def _scale(value: Any, factor: float) -> Any:
 def _number(value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise TypeError(f"expected a number or a list of numbers, got {value!r}")
-    if not math.isfinite(value):
+    if not math.isfinite(value) or abs(value) > 1e300:
         raise ValueError(f"must be finite, got {value!r}")
     return float(value)
 
@@ -347,7 +344,7 @@ def _dataclass_from(cls, values: dict[str, Any], section: str):
     unknown = sorted(set(values) - known)
     if unknown:
         raise ConfigError(f"{section}.{unknown[0]} is not a parameter; valid: "
-                          + ", ".join(sorted(known)))
+                          + ", ".join(sorted(k + UNITS.get(k, "") for k in known)))
     try:
         return cls(**values)
     except (TypeError, ValueError) as exc:

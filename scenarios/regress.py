@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +27,7 @@ from scenarios.config import ConfigError
 BASELINE_DIR = Path(__file__).resolve().parents[1] / "tests" / "baselines"
 
 CAMPAIGNS = {
-    "paper002": {"episodes": 8, "seed": 3, "filters": ["ekf", "ukf", "ckf", "sghkf-2"]},
+    "paper002": {"episodes": 8, "seed": 3, "filters": ["ekf", "ukf", "sghkf-2", "sghkf-4"]},
     "paper003": {"episodes": 4, "seed": 7,
                  "filters": ["kf", "sakf", "makf", "imakf", "makf-n", "kf-sway", "sakf-r",
                              "makf-r"],
@@ -34,7 +35,9 @@ CAMPAIGNS = {
 }
 """The regression campaign of each paper with a campaign: episodes, seed, filters and
 settings of the experiment that differ from its defaults (a shorter fine alignment keeps
-the suite quick; the filters still converge)."""
+the suite quick; the filters still converge). Filters that diverge on these episodes
+are left out: a diverging filter amplifies last bits without bound, so its numbers are
+not reproducible across machines (ckf on paper 002 does, from the 58.5 deg start)."""
 
 SKIPPED = ("us_per_epoch",)
 """Summary entries that are measurements of this machine, not results."""
@@ -88,8 +91,8 @@ class Difference:
 
     @property
     def ok(self) -> bool:
-        if math.isnan(self.baseline) and math.isnan(self.now):
-            return True
+        if self.baseline == self.now or (math.isnan(self.baseline) and math.isnan(self.now)):
+            return True                       # also inf == inf
         rel, absolute = tolerance(self.path)
         return abs(self.now - self.baseline) <= max(absolute, rel * abs(self.baseline))
 
@@ -116,6 +119,11 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
     """Run the regression campaigns; with update, store their metrics as the baselines.
     Returns (passed, report): the report has a line per paper and a table of the metrics
     that moved (beyond tolerance first)."""
+    if not papers:
+        raise ConfigError("--papers is empty; valid: " + ", ".join(CAMPAIGNS))
+    if not Path(directory).is_dir() and not update:
+        raise ConfigError(f"no baseline directory {directory} (the baselines live in the "
+                          "source checkout's tests/baselines); pass --baselines DIR")
     unknown = [p for p in papers if p not in CAMPAIGNS]
     if unknown:
         raise ConfigError(f"--papers: {', '.join(unknown)} unknown; valid: "
@@ -126,13 +134,18 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
         if update:
             now = campaign_metrics(paper, workers)
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps({"settings": CAMPAIGNS[paper], "metrics": now},
-                                       indent=1, sort_keys=True))
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(json.dumps({"settings": CAMPAIGNS[paper], "metrics": now},
+                                      indent=1, sort_keys=True))
+            os.replace(tmp, path)             # atomic: never a truncated baseline
             lines.append(f"{paper}: baseline written ({len(now)} metrics) to {path}")
             continue
         if not path.is_file():
             raise ConfigError(f"no baseline for {paper} at {path}; run with --update")
-        stored = json.loads(path.read_text())
+        try:
+            stored = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"{path} is not valid JSON ({exc}); run with --update") from None
         if stored.get("settings") != CAMPAIGNS[paper]:
             raise ConfigError(f"{path} was made with other settings "
                               f"({stored.get('settings')}); run with --update")

@@ -121,7 +121,7 @@ def test_cli_module_loads_no_physics_or_estimators():
 
 
 def test_usage_version_and_bench_help(capsys):
-    assert main([]) == 0
+    assert main([]) == 2
     assert "usage: aligngym" in capsys.readouterr().out
     with pytest.raises(SystemExit) as stop:
         main(["--version"])

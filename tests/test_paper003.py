@@ -177,6 +177,14 @@ def test_outputs_checked_before_any_work(tmp_path, capsys):
     from scenarios.campaign import episode_seeds
     assert [p.name for p in (out / "episodes").glob("*.npz")] == [
         f"seed_{episode_seeds(5, 1)[0]}.npz"]
+    (out / "campaign.json").unlink()          # episodes whose campaign is unknown
+    capsys.readouterr()
+    assert main(base + ["--out", str(out), "--resume"]) == 2
+    assert "no campaign.json" in capsys.readouterr().err
+    leftover = tmp_path / "only_tmp" / "episodes"
+    leftover.mkdir(parents=True)
+    (leftover / "seed_3.tmp.npz").write_bytes(b"half")   # not a campaign
+    assert main(base + ["--out", str(leftover.parent)]) == 0
     blocker = tmp_path / "file"
     blocker.write_text("")
     capsys.readouterr()
