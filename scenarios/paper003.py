@@ -52,33 +52,42 @@ def sway_peak_velocity(motion) -> np.ndarray:
             / np.asarray(motion.linear_period))
 
 
-def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
-    """The sway of the sway centre per local axis, for kf-sway.
-
-    Prescribed: its periods, sigma_j = A_j w_j / sqrt(2) (the std of a random-phase
-    sinusoid's velocity) and zeta = 0: the sinusoids' periods are exact, so only their
-    amplitudes and phases are unknown (no process noise). Measured on 20 episodes: zeta =
-    0.02 makes the filter underconfident (NEES 4.9 for 9 states: the oscillators'
-    bandwidth competes with the modulated accelerometer biases), zeta = 0 is in band (9.7).
-    Wave-driven: the heave velocity as a narrow-band process, from the sea state and the
-    hull's response: its std, and the period and damping ratio whose oscillator fits its
-    autocorrelation (``models.waves.heave_velocity_band``).
-    Sigmas are at least 0.1 mm/s, to keep P0 positive definite.
-    """
+def sway_velocity_std(config: ScenarioConfig) -> np.ndarray:
+    """Std (3,) m/s of the sway centre's velocity per local axis E, N, U, at least 0.1 mm/s
+    (to keep P0 positive definite): A_j w_j / sqrt(2) for the prescribed sway (a
+    random-phase sinusoid's velocity); for the wave-driven ship, from the sea state and
+    the hull's response (``models.waves.sway_centre_velocity``)."""
     if config.world == "ship-prescribed":
-        sigma = sway_peak_velocity(config.motion) / np.sqrt(2.0)
-        period, damping = tuple(config.motion.linear_period), 0.0
+        std = sway_peak_velocity(config.motion) / np.sqrt(2.0)
     elif config.world == "ship-waves":
-        from models.waves import heave_velocity_band, sway_centre_velocity
+        from models.waves import sway_centre_velocity
 
-        sigma = sway_centre_velocity(config.motion)[0]
-        peak_period, damping = heave_velocity_band(config.motion)
-        period = (peak_period,) * 3
+        std = sway_centre_velocity(config.motion)[0]
     else:
         raise ConfigError("kf-sway needs a ship's sway; scenario "
                           f"{config.name!r} has world = {config.world!r}")
-    return SwaySpectrum(period=period, sigma=tuple(np.maximum(sigma, 1e-4)),
-                        damping=float(damping))
+    return np.maximum(std, 1e-4)
+
+
+def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
+    """The sway of the sway centre per local axis, for kf-sway: the std of
+    ``sway_velocity_std``, and periods and damping ratio.
+
+    Prescribed: the sinusoids' periods and zeta = 0: the periods are exact, so only
+    their amplitudes and phases are unknown (no process noise). Measured on 20 episodes:
+    zeta = 0.02 makes the filter underconfident (NEES 4.9 for 9 states: the oscillators'
+    bandwidth competes with the modulated accelerometer biases), zeta = 0 is in band (9.7).
+    Wave-driven: the heave velocity as a narrow-band process, the period and damping
+    ratio whose oscillator fits its autocorrelation (``models.waves.heave_velocity_band``).
+    """
+    sigma = tuple(sway_velocity_std(config))
+    if config.world == "ship-prescribed":
+        return SwaySpectrum(period=tuple(config.motion.linear_period), sigma=sigma,
+                            damping=0.0)
+    from models.waves import heave_velocity_band
+
+    peak_period, damping = heave_velocity_band(config.motion)
+    return SwaySpectrum(period=(peak_period,) * 3, sigma=sigma, damping=float(damping))
 
 
 def sway_measurement_sigma(config: ScenarioConfig, duration: float = 600.0
@@ -110,7 +119,7 @@ class Paper003Experiment(Experiment):
     E, N, U (assumed, ALGORITHMS 2.2); measurement_sigma (m/s) along E, N, U: None
     derives it from the scenario's sway (``sway_measurement_sigma``); start_sway_sigma
     (m/s, E, N, U): the sway velocity's std at the start of the fine alignment, added to
-    P0 of the velocity integral (None: from ``sway_spectrum``; zero in the paper's
+    P0 of the velocity integral (None: ``sway_velocity_std``; zero in the paper's
     setup); heading_threshold
     in arcmin; default_filters: the campaign's filter list; setup: "default" or "paper"
     (``PAPER_SETUP``).
@@ -150,7 +159,7 @@ class Paper003Experiment(Experiment):
         sigma = self.measurement_sigma or sway_measurement_sigma(config, self.fine_duration)
         start = self.start_sway_sigma
         if start is None:   # the paper treats the sway as white measurement noise only
-            start = (0.0,) * 3 if self.setup == "paper" else sway_spectrum(config).sigma
+            start = (0.0,) * 3 if self.setup == "paper" else sway_velocity_std(config)
         return FineTuning(velocity_sigma=self.velocity_sigma, start_sway_sigma=tuple(start),
                           attitude_sigma=tuple(a * deg for a in self.attitude_sigma_deg),
                           gyro_bias_sigma=imu.gyro_bias_sigma,
