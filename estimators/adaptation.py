@@ -31,7 +31,9 @@ class AdaptationContext:
     innovation (B, m), zero where missing; valid (B, m) measurement present; S (B, m, m)
     innovation covariance with the unadapted P_pred; P_xz (B, n, m); PhiPPhi (B, n, n);
     Q (B, n, n); R (B, m, m); H (B, m, n); axes (B, m, m) rotation of the measurement
-    axes to E, N, U or None; motion (B,) bool or None; t (s).
+    axes to E, N, U or None; motion (B,) bool or None; directions (B, m, n) the state
+    direction each measurement measures directly (``Observation.directions``) or None;
+    t (s).
     """
 
     innovation: np.ndarray
@@ -44,6 +46,7 @@ class AdaptationContext:
     H: np.ndarray
     axes: np.ndarray | None = None
     motion: np.ndarray | None = None
+    directions: np.ndarray | None = None
     t: float = 0.0
 
 
@@ -278,3 +281,131 @@ class MeasurementAxisFading(InnovationFading):
         s = np.sqrt(lam)
         R_k = Ut @ (s[:, :, None] * R_n * s[:, None, :]) @ U
         return Adjustment(None, R_k, lam)
+
+
+def igg3_weights(standardized: np.ndarray, k0: float, k1: float) -> np.ndarray:
+    """IGG-III observation weights (Yang 1994; ALGORITHMS (5.6)) of standardised residuals:
+    1 within k0, (k0/|v|)((k1 - |v|)/(k1 - k0))^2 up to k1, 0 beyond."""
+    a = np.abs(standardized)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        middle = (k0 / a) * ((k1 - a) / (k1 - k0)) ** 2
+    return np.where(a <= k0, 1.0, np.where(a <= k1, middle, 0.0))
+
+
+def adaptive_factor(statistic: np.ndarray, c0: float, c1: float,
+                    smallest: float = 1e-3) -> np.ndarray:
+    """Yang's three-segment adaptive factor alpha (ALGORITHMS (5.5)) of the statistic
+    Delta: 1 up to c0, (c0/Delta)((c1 - Delta)/(c1 - c0))^2 up to c1, then 0, clamped at
+    ``smallest`` (alpha = 0 would discard the prediction)."""
+    d = np.asarray(statistic, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        middle = (c0 / d) * ((c1 - d) / (c1 - c0)) ** 2
+    alpha = np.where(d <= c0, 1.0, np.where(d <= c1, middle, 0.0))
+    return np.maximum(alpha, smallest)
+
+
+def _moving(ctx: AdaptationContext) -> np.ndarray:
+    """(B,) True where the policy may act: the carrier moves (all, without a flag)."""
+    batch = ctx.innovation.shape[0]
+    return np.ones(batch, bool) if ctx.motion is None else np.asarray(ctx.motion, bool)
+
+
+def robust_noise(ctx: AdaptationContext, acting: np.ndarray, k0: float, k1: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """IGG-III equivalent observation weights w (B, m) of the standardised predicted
+    residuals e_i / sqrt(S_ii) (1 where missing or where ``acting`` (B,) is False) and
+    the equivalent noise R_bar = D R D, D = diag(w^-1/2), w floored at 1e-6."""
+    valid = ctx.valid
+    diag_S = np.diagonal(ctx.S, axis1=-2, axis2=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        standardized = np.where(valid, ctx.innovation / np.sqrt(diag_S), 0.0)
+    w = np.where(acting[:, None] & valid, igg3_weights(standardized, k0, k1), 1.0)
+    d = 1.0 / np.sqrt(np.maximum(w, 1e-6))
+    return d[:, :, None] * ctx.R * d[:, None, :], w
+
+
+class _RobustObservations(AdaptationPolicy):
+    """Shared part of Yang's family (ALGORITHMS 5.2-5.3): IGG-III observation weights
+    (k0, k1), acting only in motion (001: the classic KF while static)."""
+
+    def __init__(self, k0: float = 2.0, k1: float = 6.0) -> None:
+        if not 0.0 < k0 < k1:
+            raise ValueError(f"need 0 < k0 < k1, got k0={k0}, k1={k1}")
+        self.k0, self.k1 = k0, k1
+
+    def _acting(self, ctx: AdaptationContext) -> np.ndarray:
+        return _moving(ctx) & ctx.valid.any(-1)
+
+
+class RobustAdaptive(_RobustObservations):
+    """Yang's robust adaptive KF (Yang, He & Xu 2001; ALGORITHMS 5.2) as 001 uses it: the
+    adaptive factor alpha from the predicted residuals (m < n),
+    Delta = sqrt(V^T V / tr(H P_pred H^T + R)), three-segment (c0, c1), inflates the
+    prediction, P_pred / alpha; IGG-III weights of the standardised predicted residuals
+    inflate R (``robust_noise``). Only in motion. Factors: alpha, then the weights."""
+
+    name = "robust-adaptive"
+    n_factors = 1
+
+    def __init__(self, c0: float = 1.0, c1: float = 3.0, k0: float = 2.0,
+                 k1: float = 6.0) -> None:
+        super().__init__(k0, k1)
+        if not 0.0 < c0 < c1:
+            raise ValueError(f"need 0 < c0 < c1, got c0={c0}, c1={c1}")
+        self.c0, self.c1 = c0, c1
+
+    def adapt(self, ctx):
+        valid, e = ctx.valid, ctx.innovation
+        diag_S = np.diagonal(ctx.S, axis1=-2, axis2=-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            delta = np.sqrt(np.sum(np.where(valid, e * e, 0.0), -1)
+                            / np.sum(np.where(valid, diag_S, 0.0), -1))
+        acting = self._acting(ctx)
+        alpha = np.where(acting, adaptive_factor(np.nan_to_num(delta), self.c0, self.c1), 1.0)
+        R, w = robust_noise(ctx, acting, self.k0, self.k1)
+        self.n_factors = 1 + w.shape[-1]
+        P_pred = (ctx.PhiPPhi + ctx.Q) / alpha[:, None, None]
+        return Adjustment(P_pred, R, np.concatenate([alpha[:, None], w], -1))
+
+
+class SelectiveWeights(_RobustObservations):
+    """Selective-weight adaptive KF (001 eqs. 14-21; ALGORITHMS 5.3). 001: "the model is
+    the robust adaptive filter's", with one weight per state instead of one alpha for
+    all: per directly measured state direction u_i (``Observation.directions``), with the
+    misclosure L_i (the innovation) and sigma_i = sqrt(u_i^T P_pred u_i):
+    w_i = m sigma_i / |L_i| if |L_i| > m sigma_i, else 1; P_pred <- W^-1 P_pred W^-1 with
+    W^-1 = I + sum_i (1/w_i - 1) u_i u_i^T (001: diag(1/w_i) on position and velocity,
+    R_Le^T diag(1, 1, 1/w_psi) R_Le on the misalignment, 1 on the sensor errors); the
+    observations keep their IGG-III weights (``robust_noise``; robust=False: R as
+    modelled). Only in motion (001: W = I while static). Factors: the state weights w_i,
+    then the observation weights."""
+
+    name = "selective-weights"
+    n_factors = 1
+
+    def __init__(self, m: float = 2.5, robust: bool = True, k0: float = 2.0,
+                 k1: float = 6.0) -> None:
+        super().__init__(k0, k1)
+        if not (np.isfinite(m) and m > 0.0):
+            raise ValueError(f"selective-weight threshold m must be > 0, got {m}")
+        self.m, self.robust = m, robust
+
+    def adapt(self, ctx):
+        if ctx.directions is None:
+            raise ValueError("selective weights need the observation's state directions")
+        U = ctx.directions
+        J = ctx.PhiPPhi + ctx.Q
+        sigma = np.sqrt(np.maximum(np.einsum("bin,bnk,bik->bi", U, J, U), 0.0))
+        misclosure = np.abs(ctx.innovation)
+        acting = self._acting(ctx)
+        measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None]
+        outside = measured & (misclosure > self.m * sigma)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.where(outside, self.m * sigma / misclosure, 1.0)
+        W_inv = np.eye(J.shape[-1]) + np.einsum("bi,bin,bik->bnk", 1.0 / w - 1.0, U, U)
+        if self.robust:
+            R, w_obs = robust_noise(ctx, acting, self.k0, self.k1)
+        else:
+            R, w_obs = None, np.ones_like(w)
+        self.n_factors = 2 * w.shape[-1]
+        return Adjustment(W_inv @ J @ W_inv, R, np.concatenate([w, w_obs], -1))

@@ -4,7 +4,7 @@ noise each epoch). Generic over models (``estimators.model.FilterModel``)."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -21,7 +21,8 @@ class FineResult:
     misalignment along E, N, U (Euler-error sigmas for Euler models); x (B, K+1, n)
     the state after feedback (with C_s_n and P: one consistent estimate); factors
     (B, K, k); diverged (B,), diverged_time (B,) s, diverged_reason; repairs (B,)
-    predicted covariances repaired; seconds_per_epoch: wall time per epoch for the batch.
+    predicted covariances repaired; seconds_per_epoch: wall time per epoch for the batch;
+    series: the model's own time series (``FilterModel.series``) up to the same epoch.
     """
 
     t: np.ndarray
@@ -35,6 +36,7 @@ class FineResult:
     diverged_reason: list[str]
     repairs: np.ndarray
     seconds_per_epoch: float
+    series: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class AlignmentRun:
@@ -104,7 +106,9 @@ class AlignmentRun:
                           x=self.x[:, : k + 1], factors=factors,
                           diverged=health.diverged.copy(), diverged_time=health.time.copy(),
                           diverged_reason=list(health.reason), repairs=health.repairs.copy(),
-                          seconds_per_epoch=self.compute_seconds / max(k, 1))
+                          seconds_per_epoch=self.compute_seconds / max(k, 1),
+                          series={name: values[:, : k + 1]
+                                  for name, values in self.model.series().items()})
 
 
 def run_alignment(filt: GaussianFilter, model: FilterModel) -> FineResult:

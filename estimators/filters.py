@@ -14,7 +14,8 @@ import numpy as np
 
 from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                    ImprovedMultipleFadingFactors, MeasurementAxisFading, MeasurementFadingFactor,
-                                   MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
+                                   MultipleFadingFactors, NoAdaptation, RobustAdaptive,
+                                   SelectiveWeights, SingleFadingFactor)
 from estimators.model import Observation, Transition, wrap_angle
 from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
                               LinearizationRule, SparseGridGaussHermiteRule, UnscentedRule)
@@ -147,7 +148,8 @@ class GaussianFilter:
             H = np.swapaxes(np.linalg.pinv(P_pred, hermitian=True) @ P_xz, -1, -2)
         ctx = AdaptationContext(innovation=innovation, valid=valid, S=P_zz + R, P_xz=P_xz,
                                 PhiPPhi=PhiPPhi, Q=Q, R=R, H=H, axes=observation.axes,
-                                motion=observation.motion, t=t)
+                                motion=observation.motion, directions=observation.directions,
+                                t=t)
         adjustment = self.adaptation.adapt(ctx)
         silent = ~valid.any(-1)[:, None, None]  # no measurement: no adaptation either
         if adjustment.R is not None:
@@ -269,6 +271,14 @@ FILTERS: dict[str, FilterEntry] = {
     "kf-sway": FilterEntry(LinearizationRule, NoAdaptation,
                            "KF with the sway velocity as narrow-band states per local axis "
                            "(ALGORITHMS 2.12-2.13; beyond paper 003)", model="sway-aware"),
+    "lckf": FilterEntry(LinearizationRule, NoAdaptation,
+                        "classic loosely coupled GPS/INS KF, position and velocity (001)",
+                        model="position-velocity"),
+    "rakf": FilterEntry(LinearizationRule, RobustAdaptive,
+                        "robust adaptive KF with the GPS heading (Yang; 001 scheme 2)"),
+    "swakf": FilterEntry(LinearizationRule, SelectiveWeights,
+                         "selective-weight adaptive KF with the GPS heading, m = 2.5 "
+                         "(001 eqs. 14-21)"),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),

@@ -132,12 +132,15 @@ class Observation(GaussianMap):
     t: time of the measurement, s. axes: optional (B, m, m) rotation from the
     measurement axes to local East, North, Up (per-axis adaptation along E, N, U).
     motion: optional (B,) bool, the carrier is moving (policies that act only in motion).
+    directions: optional (B, m, n), per measurement the unit direction in state space of
+    the state it measures directly (zero row: none), for selective weights (001 eq. 15-20).
     """
 
     z: Array | None = None
     t: float = 0.0
     axes: Array | None = None
     motion: Array | None = None
+    directions: Array | None = None
 
     def valid(self) -> Array:
         """(B, m) True where the measurement component is present and finite."""
@@ -176,6 +179,11 @@ class FilterModel:
         """Inject the estimate into the model's navigation solution for the live (B,)
         episodes and return the reset state and covariance (default: open loop)."""
         return x, P
+
+    def series(self) -> dict[str, Array]:
+        """Time series (B, K+1, ...) the model keeps at the epoch boundaries besides the
+        attitude (e.g. its navigation solution); none by default."""
+        return {}
 
     def attitude(self, k: int, x: Array) -> Array:
         """Estimated C_s^n (B, 3, 3) at boundary k given the filter state x (B, n)."""

@@ -200,6 +200,20 @@ class Strapdown:
         self._dtheta_prev, self._dv_prev = dtheta, dv
         return self.update_compensated(phi, dv_b)
 
+    def run(self, dtheta: np.ndarray, dv: np.ndarray) -> dict[str, np.ndarray]:
+        """Advance M intervals with raw increments (B, M, 3) (rad, m/s), coning and
+        sculling compensated across the previous call's last increment; returns the
+        trajectory at the M+1 boundaries (``run_strapdown``'s arrays, the first being
+        the state before the call) and keeps the last state."""
+        first_prev = (dtheta[:, 0], dv[:, 0]) if self._dtheta_prev is None else \
+            (self._dtheta_prev, self._dv_prev)
+        phi, dv_b = compensate(dtheta, dv, *first_prev)
+        self._dtheta_prev, self._dv_prev = dtheta[:, -1], dv[:, -1]
+        out, self._a_n = _run(self.state, self._a_n, phi, dv_b, self.dt)
+        self.state = StrapdownState(*(out[key][:, -1].copy() for key in
+                                      ("q_b_n", "v_n", "lat", "lon", "h")))
+        return out
+
     def update_compensated(self, phi: np.ndarray, dv_b: np.ndarray) -> StrapdownState:
         """Advance one interval with the compensated rotation vector phi (B, 3) rad and
         body-frame velocity increment dv_b (B, 3) m/s (see ``compensate``): the

@@ -10,8 +10,8 @@ import gymnasium
 from scenarios.registry import SCENARIO_PAPER, env_id
 
 
-# Scenarios with an alignment pipeline behind the env (the vehicle scenarios' filters,
-# papers 000 and 001, are not built yet).
+# Scenarios with an alignment pipeline behind the env (ring-road-odometer's, paper 000,
+# is not built yet).
 ENV_SCENARIOS = sorted(SCENARIO_PAPER)
 ENV_IDS = [env_id(name) for name in ENV_SCENARIOS]
 for _name, _id in zip(ENV_SCENARIOS, ENV_IDS):

@@ -278,7 +278,9 @@ def concatenate_results(parts: list[FineResult]) -> FineResult:
                       diverged_time=cat("diverged_time"),
                       diverged_reason=sum((p.diverged_reason for p in parts), []),
                       repairs=cat("repairs"),
-                      seconds_per_epoch=sum(p.seconds_per_epoch for p in parts))
+                      seconds_per_epoch=sum(p.seconds_per_epoch for p in parts),
+                      series={name: np.concatenate([p.series[name] for p in parts])
+                              for name in parts[0].series})
 
 
 def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:

@@ -38,14 +38,17 @@ class _Version(argparse.Action):
         parser.exit(0)
 
 
-def _positive_float(field: str):
+def _positive_float(field: str, allow_zero: bool = False):
+    """Parser of a finite number > 0 (>= 0 with allow_zero) for the option ``field``."""
+    bound = ">= 0" if allow_zero else "> 0"
+
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{field} must be a number, got {text!r}") from None
-        if not (math.isfinite(value) and value > 0.0):
-            raise argparse.ArgumentTypeError(f"{field} must be > 0, got {text}")
+        if not (math.isfinite(value) and (value > 0.0 or (allow_zero and value == 0.0))):
+            raise argparse.ArgumentTypeError(f"{field} must be {bound}, got {text}")
         return value
     return parse
 
@@ -67,7 +70,8 @@ def _bench_epilog() -> str:
             + "\nscenarios with a pipeline: "
             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
             + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
-            "ship-prescribed or ship-waves for paper003, static-platform for paper002")
+            "car for paper001, ship-prescribed or ship-waves for paper003, static-platform "
+            "for paper002")
 
 
 def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
@@ -103,21 +107,25 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                            formatter_class=argparse.RawDescriptionHelpFormatter)
     bench.add_argument("paper", choices=list(PAPERS), help="which paper's experiment")
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
-                       help="Monte Carlo episodes (default: 100 for paper002, 50 for "
-                       "paper003)")
+                       help="Monte Carlo episodes (default: 50 for paper001 and paper003, "
+                       "100 for paper002)")
     bench.add_argument("--setup", choices=["default", "paper"], default="default",
                        help="paper003: 'paper' reproduces the paper's setup (biases fixed "
                        "in the hull frame, calm-sea R, fading factors on R; README; "
                        "default: default)")
     bench.add_argument("--scenario", metavar="NAME|FILE.toml",
                        help="scenario to run the paper's experiment on (default: the "
-                       "paper's: static-large-azimuth for paper002, ship-sway-rotary for "
-                       "paper003); a .toml may carry a [filter] table")
+                       "paper's: figure8-gps for paper001, static-large-azimuth for "
+                       "paper002, ship-sway-rotary for paper003); a .toml may carry a "
+                       "[filter] table")
     bench.add_argument("--seed", type=_seed, default=0, metavar="S",
                        help="campaign seed (default: 0)")
     bench.add_argument("--filters", help="comma-separated filter names (default: "
-                       "ekf,ukf,sghkf-2,sghkf-4 for paper002; kf,sakf,makf,imakf for "
-                       "paper003)")
+                       "lckf,rakf,swakf for paper001; ekf,ukf,sghkf-2,sghkf-4 for "
+                       "paper002; kf,sakf,makf,imakf for paper003)")
+    bench.add_argument("--outage", type=_positive_float("--outage", allow_zero=True), metavar="S",
+                       help="paper001: a GPS outage of S seconds in the middle of the "
+                       "motion phase (default: none)")
     bench.add_argument("--out", metavar="DIR", help="directory for results.csv, coarse.csv, "
                        "timeseries.npz, the plots and the per-episode files (default: none)")
     bench.add_argument("--json", metavar="FILE",
@@ -161,7 +169,7 @@ def _positive_int(field: str):
     return parse
 
 
-DEFAULT_EPISODES = {"paper002": 100, "paper003": 50}
+DEFAULT_EPISODES = {"paper001": 50, "paper002": 100, "paper003": 50}
 
 
 def _check_writable(path_text: str, option: str) -> None:
@@ -192,8 +200,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
     if args.json:
         _check_writable(args.json, "--json")
-    exp = (experiment(args.paper, args.setup) if args.scenario is None
-           else experiment(args.paper, args.setup, scenario=args.scenario))
+    settings = {} if args.scenario is None else {"scenario": args.scenario}
+    if args.outage is not None:
+        if args.paper != "paper001":
+            raise ConfigError(f"--outage exists for paper001 only, not {args.paper}")
+        settings["outage"] = args.outage
+    exp = experiment(args.paper, args.setup, **settings)
     filters = (list(exp.default_filters) if args.filters is None
                else [f.strip() for f in args.filters.split(",") if f.strip()])
     if not filters:

@@ -54,6 +54,7 @@ UNITS = {
     # GPS (velocity_sigma and heading_min_speed in m/s, no suffix)
     "rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
     "velocity_sigma": "", "heading_min_speed": "", "latency": "_s", "outages": "_s",
+    "outliers": "",
     # odometer
     "pulses_per_rev": "", "nominal_radius": "_m", "scale_error": "",
     "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
@@ -68,8 +69,9 @@ VECTORS = ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b",
 """Parameters of 3 values (E, N, U or R, F, U)."""
 STRINGS = ("preset", "bias_frame", "track")
 INTEGERS = ("components", "pulses_per_rev")
-FREE = ("outages", "initial_covariance")
-"""Checked by their users: (start, end) windows; a matrix."""
+FREE = ("outages", "outliers", "initial_covariance")
+"""Checked by their users: (start, end) windows; (time s, east m, north m, up m) rows; a
+matrix."""
 
 SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter")
 TOP_KEYS = ("name", "paper", "world")

@@ -8,7 +8,7 @@ Observation (float32, 16): normalised innovations e_i / sqrt(S_ii) (up to 3, cli
 +-10); log10 of the attitude and bias covariance diagonal relative to its initial value
 (up to 9: the experiment's attitude, gyro-drift and accelerometer-bias states, 003: 9,
 002: 8; clipped to [-20, 5]); log10 of the current fading factors (3, zero where the
-filter has fewer; clipped to [-2, 3]); elapsed fraction of the fine alignment (1).
+filter has fewer, the smallest three of 001's weights; clipped to [-2, 3]); elapsed fraction of the fine alignment (1).
 Unused entries are zero.
 
 Action (float32 in [-1, 1]): log-scale multipliers 10^(2 a) on the variances of the
@@ -216,6 +216,9 @@ class AlignmentEnv(gym.Env):
             obs[3:3 + sub.size] = np.log10(np.maximum(diag[sub], 1e-300) / diag0[sub])
         if run.k > 0 and run.factors is not None and run.factors.shape[-1]:
             f = run.factors[0, run.k - 1]
+            f = f[np.isfinite(f)]
+            if f.size > 3:          # more than three (001's weights): the smallest three
+                f = np.sort(f)[:3]
             obs[12:12 + f.size] = np.log10(np.maximum(f, 1e-3))
         obs[15] = run.k / run.epochs
         return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(
@@ -233,6 +236,11 @@ class AlignmentEnv(gym.Env):
             if self.config.world == "ship-waves":
                 from models.waves import WaveShipWorld
                 self._world = WaveShipWorld(self.config.motion, rng)
+            elif self.config.world == "car":
+                from models.car import CarWorld
+                motion = self.config.motion
+                self._world = CarWorld(motion.car_params(), motion.make_track(),
+                                       motion.profile())
             else:
                 self._world = make_world(self.config, rng)
         world = self._world
@@ -251,8 +259,15 @@ class AlignmentEnv(gym.Env):
         elif hasattr(self, "_episode"):  # dynamic world: posed from the episode's truth
             C_s_b = self._episode.C_s_b[k]
             world.data.qpos[3:7] = dcm_to_quat(self._episode.C_b_n_true[k])
-            world.data.qpos[world._gimbal_qpos] = [np.arctan2(-C_s_b[0, 1], C_s_b[1, 1]),
-                                                   np.arctan2(C_s_b[2, 1], C_s_b[2, 2])]
+            if hasattr(world, "_gimbal_qpos"):
+                world.data.qpos[world._gimbal_qpos] = [
+                    np.arctan2(-C_s_b[0, 1], C_s_b[1, 1]), np.arctan2(C_s_b[2, 1], C_s_b[2, 2])]
+            if hasattr(self._episode, "true_lat"):   # a vehicle: where it is on the plane
+                from models.earth import radii
+                R_M, R_N = radii(self.config.latitude)
+                world.data.qpos[0] = ((self._episode.true_lon[k] - self.config.longitude)
+                                      * R_N * np.cos(self.config.latitude))
+                world.data.qpos[1] = (self._episode.true_lat[k] - self.config.latitude) * R_M
         mujoco.mj_forward(world.model, world.data)
         self._camera.lookat[:] = world.data.xpos[world.model.body("carrier").id]
         self._renderer.update_scene(world.data, self._camera)

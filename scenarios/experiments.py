@@ -29,6 +29,9 @@ def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
         cls = Paper003Experiment
         if setup == "paper":
             settings = {**PAPER_SETUP, **settings}
+    elif paper == "paper001":
+        from scenarios.paper001 import Paper001Experiment
+        cls = Paper001Experiment
     elif paper == "paper002":
         from scenarios.paper002 import Paper002Experiment
         cls = Paper002Experiment

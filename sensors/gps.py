@@ -12,7 +12,9 @@ import numpy as np
 class GpsSpec:
     """rate: Hz; position sigmas horizontal / vertical, m; velocity_sigma per axis, m/s;
     heading_min_speed: below this horizontal speed the heading is flagged invalid, m/s;
-    latency: age of each fix when it is stamped, s; outages: (start, end) windows, s."""
+    latency: age of each fix when it is stamped, s; outages: (start, end) windows, s;
+    outliers: faults (time s, east m, north m, up m), the position of the fix stamped
+    nearest that time is offset by (east, north, up)."""
 
     rate: float = 1.0
     position_sigma_h: float = 0.02
@@ -21,8 +23,13 @@ class GpsSpec:
     heading_min_speed: float = 5.0
     latency: float = 0.0
     outages: tuple[tuple[float, float], ...] = ()
+    outliers: tuple[tuple[float, float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "outages", _windows(self.outages, 2, "outages",
+                                                     "(start_s, end_s)"))
+        object.__setattr__(self, "outliers", _windows(self.outliers, 4, "outliers",
+                                                      "(time_s, east_m, north_m, up_m)"))
         if not 0.0 < self.rate <= 100.0:
             raise ValueError(f"gps.rate = {self.rate} Hz is out of range (0, 100]")
         for name in ("position_sigma_h", "position_sigma_v", "velocity_sigma", "latency",
@@ -33,6 +40,18 @@ class GpsSpec:
         for start, end in self.outages:
             if not end > start:
                 raise ValueError(f"gps.outages: window ({start}, {end}) must have end > start")
+
+
+def _windows(value, width: int, name: str, shape: str) -> tuple[tuple[float, ...], ...]:
+    """A list of ``width``-number rows as a tuple of float tuples; ValueError naming
+    gps.<name> otherwise."""
+    try:
+        rows = tuple(tuple(float(v) for v in row) for row in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"gps.{name} must be a list of {shape} rows of numbers") from None
+    if any(len(row) != width or not all(math.isfinite(v) for v in row) for row in rows):
+        raise ValueError(f"gps.{name} must be a list of {shape} rows of finite numbers")
+    return rows
 
 
 def heading_from_velocity(v_n: np.ndarray, velocity_sigma: float
@@ -60,6 +79,11 @@ def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: n
     d_east = spec.position_sigma_h * rng.standard_normal(n)
     d_up = spec.position_sigma_v * rng.standard_normal(n)
     v_meas = v_n + spec.velocity_sigma * rng.standard_normal((n, 3))
+    for when, east, north, up in spec.outliers:
+        i = int(np.argmin(np.abs(t + spec.latency - when)))
+        d_east[i] += east
+        d_north[i] += north
+        d_up[i] += up
     yaw, sigma = heading_from_velocity(v_meas, spec.velocity_sigma)
     stamp = t + spec.latency
     valid = np.ones(n, bool)

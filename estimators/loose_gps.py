@@ -1,0 +1,300 @@
+"""Loosely coupled GPS/INS with the single-antenna GPS heading (seed 001; ALGORITHMS 5.1).
+
+Error state in the e frame (ECEF), as in 001: x = [dr^e, dv^e, phi^e, d, b] (15), the
+INS position and velocity errors (m, m/s), the misalignment (C~_b^e = (I - [phi x])
+C_b^e, rad), the gyro drift (rad/s) and the accelerometer bias (m/s^2), both in the
+body frame. The INS itself runs the ENU strapdown (``estimators.strapdown``) at the IMU
+rate on increments corrected with the accumulated bias estimates; every epoch the
+estimate is fed back into it (closed loop), so the predicted state is zero (001 eq. 8).
+
+Error dynamics (Jekeli 2001; ALGORITHMS 5.1):
+  dr' = dv;  dv' = Gamma dr - 2 [w_ie x] dv + [f^e x] phi + C_b^e b;
+  phi' = -[w_ie x] phi - C_b^e d;  d' = b' = 0,
+with the gravity gradient Gamma = (g / r)(3 u u^T - I) of a spherical earth.
+
+Measurements at each GPS fix (001 eq. 12), all INS minus GPS, the antenna lever arm l^b
+(from the IMU to the antenna, body frame) compensated:
+  r_I + C_b^e l - r_G;  v_I + C_b^e (w_eb x l) - v_G  (e frame, m, m/s);
+  psi_I - psi_G (heading clockwise from north, rad, wrapped), only in motion above the
+  heading speed threshold, with 001 eqs. 2-4's sigma; its row is
+  h_psi = [-tan(theta) sin(psi), -tan(theta) cos(psi), 1] R_Le, which is R_Le(3, :) on a
+  level vehicle (ALGORITHMS 5.1).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
+from estimators.strapdown import Strapdown, StrapdownState
+from models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
+from models.earth import (C_n_e, OMEGA_IE, ecef_to_geodetic, geodetic_to_ecef,
+                          normal_gravity)
+
+LAYOUT = StateLayout({"position": slice(0, 3), "velocity": slice(3, 6),
+                      "misalignment": slice(6, 9), "gyro_bias": slice(9, 12),
+                      "accel_bias": slice(12, 15)})
+POSITION, VELOCITY, PHI = LAYOUT["position"], LAYOUT["velocity"], LAYOUT["misalignment"]
+GYRO, ACCEL = LAYOUT["gyro_bias"], LAYOUT["accel_bias"]
+MEASUREMENTS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z", "heading")
+HEADING = 6
+OMEGA_IE_E = np.array([0.0, 0.0, OMEGA_IE])
+
+
+@dataclass(frozen=True)
+class LooseTuning:
+    """What the filter believes, SI. P0 sigmas: position (m), velocity (m/s), attitude
+    (3,) along E, N, U (rad), gyro drift (rad/s), accelerometer bias (m/s^2); process
+    white noise densities: gyro (rad/sqrt(s)) and accelerometer (m/s/sqrt(s)); GPS
+    sigmas: position horizontal and vertical (m), velocity (m/s, per axis); heading:
+    use the GPS heading observation; heading_min_speed: GPS horizontal speed (m/s) from
+    which it is used; motion_speed: INS horizontal speed (m/s) above which the carrier
+    counts as moving (adaptive policies act only then; 001: "classic KF while static")."""
+
+    position_sigma: float
+    velocity_sigma: float
+    attitude_sigma: tuple[float, float, float]
+    gyro_bias_sigma: float
+    accel_bias_sigma: float
+    gyro_noise_density: float
+    accel_noise_density: float
+    gps_position_sigma_h: float
+    gps_position_sigma_v: float
+    gps_velocity_sigma: float
+    heading: bool = True
+    heading_min_speed: float = 5.0
+    motion_speed: float = 0.5
+
+
+@dataclass
+class GpsInsInputs:
+    """Everything the model reads, for B episodes and K epochs of S IMU intervals.
+
+    t (K+1,) s, epoch boundaries; imu_dt s; dtheta, dv (B, K, S, 3) raw increments
+    (rad, m/s, body frame); GPS fixes at the boundaries: gps_lat, gps_lon (B, K+1) rad,
+    gps_h m, gps_v_n (B, K+1, 3) m/s ENU, gps_heading_sigma (B, K+1) rad, NaN where
+    there is no fix; lever_arm_b (B, 3) m, IMU to antenna; the INS start: q_b_n0 (B, 4),
+    v_n0 (B, 3), lat0, lon0, h0 (B,)."""
+
+    t: np.ndarray
+    imu_dt: float
+    dtheta: np.ndarray
+    dv: np.ndarray
+    gps_lat: np.ndarray
+    gps_lon: np.ndarray
+    gps_h: np.ndarray
+    gps_v_n: np.ndarray
+    gps_heading_sigma: np.ndarray
+    lever_arm_b: np.ndarray
+    q_b_n0: np.ndarray
+    v_n0: np.ndarray
+    lat0: np.ndarray
+    lon0: np.ndarray
+    h0: np.ndarray
+
+
+def heading_cw(C_b_n: np.ndarray) -> np.ndarray:
+    """Heading (..., ) rad clockwise from north of the body's forward (y) axis."""
+    return np.arctan2(C_b_n[..., 0, 1], C_b_n[..., 1, 1])
+
+
+def heading_row(C_b_n: np.ndarray, C_e_n: np.ndarray) -> np.ndarray:
+    """d(heading)/d(phi^e) (..., 3): [-tan(theta) sin(psi), -tan(theta) cos(psi), 1] R_Le
+    for C~ = (I - [phi x]) C (ALGORITHMS 5.1)."""
+    forward = C_b_n[..., :, 1]
+    tan_pitch = forward[..., 2] / np.hypot(forward[..., 0], forward[..., 1])
+    psi = heading_cw(C_b_n)
+    row_n = np.stack([-tan_pitch * np.sin(psi), -tan_pitch * np.cos(psi),
+                      np.ones_like(psi)], -1)
+    return np.einsum("...i,...ij->...j", row_n, C_e_n)
+
+
+def gravity_gradient(r_e: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Gamma^e (..., 3, 3) 1/s^2 of a spherical earth: (g / |r|)(3 u u^T - I)."""
+    norm = np.linalg.norm(r_e, axis=-1)
+    u = r_e / norm[..., None]
+    g = normal_gravity(lat, h)
+    return (g / norm)[..., None, None] * (3.0 * u[..., :, None] * u[..., None, :]
+                                          - np.eye(3))
+
+
+class LooselyCoupledModel(FilterModel):
+    """The 15-state loosely coupled model (see the module docstring) on B episodes; with
+    tuning.heading False it is the classic loosely coupled KF (position and velocity).
+
+    It keeps the navigation solution after each feedback (``series``): lat, lon (rad),
+    h (m), v_n (m/s), the accumulated gyro_bias (rad/s) and accel_bias (m/s^2) estimates,
+    and gps_difference (m, m/s): corrected INS (at the antenna) minus GPS, E, N, U
+    position then velocity, NaN without a fix."""
+
+    layout = LAYOUT
+
+    def __init__(self, inputs: GpsInsInputs, tuning: LooseTuning) -> None:
+        self.inputs, self.tuning = inputs, tuning
+        B, K, S = inputs.dtheta.shape[:3]
+        self.batch, self.epochs, self.t = B, K, inputs.t
+        self.step = float(inputs.t[1] - inputs.t[0])
+        self.ins = Strapdown(StrapdownState.from_arrays(
+            inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0, inputs.h0), inputs.imu_dt)
+        self.gyro_bias = np.zeros((B, 3))
+        self.accel_bias = np.zeros((B, 3))
+        self._omega_ib_b = np.zeros((B, 3))
+        self._series = {"lat": np.full((B, K + 1), np.nan), "lon": np.full((B, K + 1), np.nan),
+                        "h": np.full((B, K + 1), np.nan),
+                        "v_n": np.full((B, K + 1, 3), np.nan),
+                        "C_b_n": np.full((B, K + 1, 3, 3), np.nan),
+                        "gyro_bias": np.zeros((B, K + 1, 3)),
+                        "accel_bias": np.zeros((B, K + 1, 3)),
+                        "gps_difference": np.full((B, K + 1, 6), np.nan)}
+        self._k = 0
+        self._store(0)
+
+    # --- navigation solution ------------------------------------------------------------
+    def _navigation(self):
+        """C_b^n, C_n^e, C_b^e, r^e, v^e of the current INS state."""
+        s = self.ins.state
+        C_b_n = quat_to_dcm(s.q_b_n)
+        C_ne = C_n_e(s.lat, s.lon)
+        return C_b_n, C_ne, C_ne @ C_b_n, geodetic_to_ecef(s.lat, s.lon, s.h), \
+            np.einsum("bij,bj->bi", C_ne, s.v_n)
+
+    def _lever(self, C_b_e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Antenna offset C_b^e l and its velocity C_b^e (w_eb^b x l), e frame."""
+        l_b = self.inputs.lever_arm_b
+        w_eb = self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E)
+        return (np.einsum("bij,bj->bi", C_b_e, l_b),
+                np.einsum("bij,bj->bi", C_b_e, np.cross(w_eb, l_b)))
+
+    def _gps(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """GPS antenna position and velocity in e and C_n^e at the fix, boundary k."""
+        inp = self.inputs
+        C_ne = C_n_e(inp.gps_lat[:, k], inp.gps_lon[:, k])
+        r = geodetic_to_ecef(inp.gps_lat[:, k], inp.gps_lon[:, k], inp.gps_h[:, k])
+        return r, np.einsum("bij,bj->bi", C_ne, inp.gps_v_n[:, k]), C_ne
+
+    def _store(self, k: int) -> None:
+        s, out = self.ins.state, self._series
+        out["lat"][:, k], out["lon"][:, k], out["h"][:, k] = s.lat, s.lon, s.h
+        out["v_n"][:, k] = s.v_n
+        C_b_n, C_ne, C_b_e, r_e, v_e = self._navigation()
+        out["C_b_n"][:, k] = C_b_n
+        out["gyro_bias"][:, k], out["accel_bias"][:, k] = self.gyro_bias, self.accel_bias
+        lever_r, lever_v = self._lever(C_b_e)
+        r_g, v_g, _ = self._gps(k)
+        C_en = np.swapaxes(C_ne, -1, -2)
+        out["gps_difference"][:, k] = np.concatenate([
+            np.einsum("bij,bj->bi", C_en, r_e + lever_r - r_g),
+            np.einsum("bij,bj->bi", C_en, v_e + lever_v - v_g)], -1)
+
+    def series(self) -> dict[str, np.ndarray]:
+        return self._series
+
+    # --- FilterModel ----------------------------------------------------------------------
+    def initial(self):
+        tu, B = self.tuning, self.batch
+        C_b_n, C_ne, *_ = self._navigation()
+        P = np.zeros((B, 15, 15))
+        R_pos_n = np.diag([tu.position_sigma ** 2] * 3)
+        P[:, POSITION, POSITION] = C_ne @ R_pos_n @ np.swapaxes(C_ne, -1, -2)
+        P[:, VELOCITY, VELOCITY] = np.eye(3) * tu.velocity_sigma ** 2
+        P[:, PHI, PHI] = C_ne @ np.diag(np.square(tu.attitude_sigma)) @ np.swapaxes(C_ne, -1, -2)
+        P[:, GYRO, GYRO] = np.eye(3) * tu.gyro_bias_sigma ** 2
+        P[:, ACCEL, ACCEL] = np.eye(3) * tu.accel_bias_sigma ** 2
+        return np.zeros((B, 15)), P
+
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        inp, dt = self.inputs, self.inputs.imu_dt
+        dtheta = inp.dtheta[:, k] - self.gyro_bias[:, None] * dt
+        dv = inp.dv[:, k] - self.accel_bias[:, None] * dt
+        out = self.ins.run(dtheta, dv)
+        S = dtheta.shape[1]
+        self._omega_ib_b = dtheta[:, -10:].mean(1) / dt
+        mid = S // 2
+        C_b_n = quat_to_dcm(out["q_b_n"][:, mid])
+        C_ne = C_n_e(out["lat"][:, mid], out["lon"][:, mid])
+        C_b_e = C_ne @ C_b_n
+        f_e = np.einsum("bij,bj->bi", C_b_e, dv.sum(1) / (S * dt))
+        r_e = geodetic_to_ecef(out["lat"][:, mid], out["lon"][:, mid], out["h"][:, mid])
+        B, T = self.batch, self.step
+        W = skew(OMEGA_IE_E)
+        F = np.zeros((B, 15, 15))
+        F[:, POSITION, VELOCITY] = np.eye(3)
+        F[:, VELOCITY, POSITION] = gravity_gradient(r_e, out["lat"][:, mid], out["h"][:, mid])
+        F[:, VELOCITY, VELOCITY] = -2.0 * W
+        F[:, VELOCITY, PHI] = skew(f_e)
+        F[:, VELOCITY, ACCEL] = C_b_e
+        F[:, PHI, PHI] = -W
+        F[:, PHI, GYRO] = -C_b_e
+        FT = F * T
+        Phi = np.eye(15) + FT + 0.5 * FT @ FT
+        q = np.zeros(15)
+        q[PHI] = self.tuning.gyro_noise_density ** 2 * q_scale[0]
+        q[VELOCITY] = self.tuning.accel_noise_density ** 2 * q_scale[1]
+        Qc = np.diag(q)   # C_b^e q C_e^b = q I for isotropic white noise
+        Q = 0.5 * T * (Phi @ Qc @ np.swapaxes(Phi, -1, -2) + Qc)
+        return Transition(noise=Q, matrix=Phi)
+
+    def observation(self, k, r_scale=1.0):
+        tu, inp, B = self.tuning, self.inputs, self.batch
+        self._k = k + 1
+        C_b_n, C_ne, C_b_e, r_e, v_e = self._navigation()
+        lever_r, lever_v = self._lever(C_b_e)
+        r_g, v_g, _ = self._gps(k + 1)
+        C_en = np.swapaxes(C_ne, -1, -2)
+        z = np.full((B, 7), np.nan)
+        z[:, 0:3] = r_e + lever_r - r_g
+        z[:, 3:6] = v_e + lever_v - v_g
+        speed_gps = np.hypot(inp.gps_v_n[:, k + 1, 0], inp.gps_v_n[:, k + 1, 1])
+        psi_g = np.arctan2(inp.gps_v_n[:, k + 1, 0], inp.gps_v_n[:, k + 1, 1])
+        use = (tu.heading & (speed_gps >= tu.heading_min_speed)
+               & np.isfinite(inp.gps_heading_sigma[:, k + 1]))
+        z[:, HEADING] = np.where(use, wrap_angle(heading_cw(C_b_n) - psi_g), np.nan)
+        H = np.zeros((B, 7, 15))
+        H[:, 0:3, POSITION] = np.eye(3)
+        H[:, 0:3, PHI] = skew(lever_r)
+        H[:, 3:6, VELOCITY] = np.eye(3)
+        H[:, 3:6, PHI] = skew(lever_v)
+        H[:, 3:6, GYRO] = -C_b_e @ skew(inp.lever_arm_b)
+        H[:, HEADING, PHI] = heading_row(C_b_n, C_en)
+        R = np.zeros((B, 7, 7))
+        R_pos_n = np.diag([tu.gps_position_sigma_h ** 2] * 2 + [tu.gps_position_sigma_v ** 2])
+        R[:, 0:3, 0:3] = C_ne @ R_pos_n @ C_en
+        R[:, 3:6, 3:6] = np.eye(3) * tu.gps_velocity_sigma ** 2
+        R[:, HEADING, HEADING] = np.where(use, inp.gps_heading_sigma[:, k + 1], 1.0) ** 2
+        directions = np.zeros((B, 7, 15))
+        directions[:, np.arange(6), np.arange(6)] = 1.0
+        directions[:, HEADING, PHI] = C_en[:, 2]       # the local vertical in e: R_Le(3, :)
+        moving = np.hypot(self.ins.state.v_n[:, 0], self.ins.state.v_n[:, 1]) >= tu.motion_speed
+        return Observation(noise=R * r_scale, matrix=H, z=z, t=float(self.t[k + 1]),
+                           angles=(HEADING,), motion=moving, directions=directions)
+
+    def feedback(self, x, P, live):
+        """Correct the INS with the estimate (live episodes), accumulate the bias
+        estimates, reset the state to zero (closed loop)."""
+        C_b_n, C_ne, C_b_e, r_e, v_e = self._navigation()
+        x = np.where(live[:, None], x, 0.0)
+        r_e = r_e - x[:, POSITION]
+        v_e = v_e - x[:, VELOCITY]
+        C_b_e = rotvec_to_dcm(x[:, PHI]) @ C_b_e
+        lat, lon, h = ecef_to_geodetic(r_e)
+        C_en = np.swapaxes(C_n_e(lat, lon), -1, -2)
+        s = self.ins.state
+        s.q_b_n = dcm_to_quat(C_en @ C_b_e)
+        s.v_n = np.einsum("bij,bj->bi", C_en, v_e)
+        s.lat, s.lon, s.h = lat, lon, h
+        self.gyro_bias = self.gyro_bias + x[:, GYRO]
+        self.accel_bias = self.accel_bias + x[:, ACCEL]
+        self._store(self._k)
+        return np.where(live[:, None], 0.0, x), P
+
+    def attitude(self, k, x):
+        C_b_n = self._series["C_b_n"][:, k]
+        C_en = np.swapaxes(C_n_e(self._series["lat"][:, k], self._series["lon"][:, k]), -1, -2)
+        phi_n = np.einsum("bij,bj->bi", C_en, x[:, PHI])
+        return rotvec_to_dcm(phi_n) @ C_b_n
+
+    def attitude_sigma(self, k, P):
+        C_en = np.swapaxes(C_n_e(self._series["lat"][:, k], self._series["lon"][:, k]), -1, -2)
+        P_n = C_en @ P[:, PHI, PHI] @ np.swapaxes(C_en, -1, -2)
+        return np.sqrt(np.maximum(np.diagonal(P_n, axis1=-2, axis2=-1), 0.0))

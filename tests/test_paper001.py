@@ -1,0 +1,297 @@
+"""Paper 001: the loosely coupled GPS/INS model against the strapdown it linearises, the
+adaptive policies against ALGORITHMS 5's oracles, and the campaign's physics (GPS outage,
+GPS outlier, bad input)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from estimators.adaptation import (AdaptationContext, RobustAdaptive, SelectiveWeights,
+                                   adaptive_factor, igg3_weights)
+from estimators.filters import GaussianFilter
+from estimators.loose_gps import (GpsInsInputs, LooselyCoupledModel, LooseTuning,
+                                  heading_cw, heading_row)
+from estimators.model import Observation, Transition
+from estimators.rules import LinearizationRule
+from estimators.adaptation import NoAdaptation
+from models.attitude import dcm_to_quat, euler_to_dcm, quat_to_dcm, rotvec_to_dcm, skew
+from models.earth import C_n_e, geodetic_to_ecef
+from models.units import deg
+from scenarios.campaign import run_campaign
+from scenarios.config import ConfigError, load_scenario
+from scenarios.paper001 import Paper001Experiment
+from scenarios.simulate import simulate
+from sensors.gps import heading_from_velocity
+
+SHORT = """name = "figure8-gps-short"
+paper = "001"
+world = "car"
+
+[origin]
+latitude_deg = 30.5
+longitude_deg = 114.3
+height_m = 20.0
+
+[run]
+duration_s = 240.0
+imu_rate_hz = 100.0
+
+[imu]
+preset = "paper001-van"
+
+[motion]
+track = "figure8"
+radius_m = 300.0
+speed = 16.7
+start_time_s = 40.0
+
+[gps]
+preset = "rtk"
+{extra}
+"""
+
+
+def short_scenario(tmp_path: Path, extra: str = "") -> str:
+    path = tmp_path / "short.toml"
+    path.write_text(SHORT.format(extra=extra))
+    return str(path)
+
+
+# --- oracles (ALGORITHMS 5) ------------------------------------------------------------------
+def test_heading_sigma_is_a_tenth_of_a_degree_at_10_m_s():
+    _, sigma = heading_from_velocity(np.array([[6.0, 8.0, 0.3]]), 0.0175)
+    assert sigma[0] / deg == pytest.approx(0.100, abs=5e-4)
+
+
+def test_heading_row_is_the_vertical_on_a_level_vehicle_and_the_derivative_otherwise():
+    lat, lon = 30.5 * deg, 114.3 * deg
+    C_ne = C_n_e(lat, lon)
+    level = euler_to_dcm(np.array([0.0, 0.0, 0.7]))
+    np.testing.assert_allclose(heading_row(level, C_ne.T), C_ne.T[2], atol=1e-15)
+    C = euler_to_dcm(np.array([20 * deg, -10 * deg, 2.0]))       # pitched and rolled
+    row = heading_row(C, C_ne.T)
+    h = 1e-7
+    for i in range(3):
+        phi_e = np.zeros(3)
+        phi_e[i] = h
+        phi_n = C_ne.T @ phi_e
+        d = (heading_cw((np.eye(3) - skew(phi_n)) @ C) - heading_cw(
+            (np.eye(3) + skew(phi_n)) @ C)) / (2 * h)
+        assert d == pytest.approx(row[i], abs=1e-7)
+
+
+def test_adaptive_factor_and_igg3_segments():
+    assert adaptive_factor(np.array([0.0, 1.0]), 1.0, 3.0).tolist() == [1.0, 1.0]
+    assert adaptive_factor(np.array([1.0 + 1e-9]), 1.0, 3.0)[0] == pytest.approx(1.0)
+    assert adaptive_factor(np.array([2.0]), 1.0, 3.0)[0] == pytest.approx(0.5 * 0.25)
+    assert adaptive_factor(np.array([10.0]), 1.0, 3.0)[0] == 1e-3     # clamped, not 0
+    w = igg3_weights(np.array([0.5, -2.0, 4.0, 6.0, 7.0]), 2.0, 6.0)
+    np.testing.assert_allclose(w, [1.0, 1.0, 0.5 * 0.25, 0.0, 0.0])
+
+
+def _context(P, innovation, R, directions=None, motion=True):
+    m = innovation.shape[-1]
+    H = np.zeros((1, m, P.shape[-1]))
+    H[0, np.arange(m), np.arange(m)] = 1.0
+    S = H @ P @ np.swapaxes(H, -1, -2) + R
+    return AdaptationContext(innovation=innovation, valid=np.ones_like(innovation, bool), S=S,
+                             P_xz=P @ np.swapaxes(H, -1, -2), PhiPPhi=P, Q=np.zeros_like(P),
+                             R=R, H=H, directions=directions, motion=np.array([motion]))
+
+
+def test_selective_weights_oracles():
+    rng = np.random.default_rng(1)
+    A = rng.standard_normal((1, 9, 9))
+    P = A @ np.swapaxes(A, -1, -2) + np.eye(9)
+    U = np.zeros((1, 7, 9))
+    U[0, np.arange(6), np.arange(6)] = 1.0
+    vertical = np.array([0.3, 0.4, np.sqrt(1 - 0.25)])
+    U[0, 6, 6:9] = vertical
+    sigma = np.sqrt(np.einsum("bin,bnk,bik->bi", U, P, U))[0]
+    policy = SelectiveWeights(m=2.5, robust=False)
+    R = np.eye(7)[None] * 1e-4
+    inside = 2.4 * sigma * np.where(np.arange(7) % 2, 1, -1)
+    assert policy.adapt(_context(P, inside[None], R, U)).P_pred == pytest.approx(P)
+    big = inside.copy()
+    big[0] = 2 * 2.5 * sigma[0]                      # |L_1| = 2 m sigma_1
+    adjusted = policy.adapt(_context(P, big[None], R, U)).P_pred[0]
+    assert adjusted[0, 0] == pytest.approx(4 * P[0, 0, 0])
+    np.testing.assert_allclose(adjusted[0, 1:], 2 * P[0, 0, 1:])
+    np.testing.assert_allclose(adjusted[1:, 1:], P[0, 1:, 1:])
+    heading = inside.copy()
+    heading[6] = 4 * 2.5 * sigma[6]                  # w_psi = 1/4 about the vertical
+    adjusted = policy.adapt(_context(P, heading[None], R, U)).P_pred[0]
+    W_inv = np.eye(9)
+    W_inv[6:, 6:] += 3.0 * np.outer(vertical, vertical)   # R_Le^T diag(1, 1, 4) R_Le
+    np.testing.assert_allclose(adjusted, W_inv @ P[0] @ W_inv, rtol=1e-12)
+    static = policy.adapt(_context(P, heading[None], R, U, motion=False)).P_pred
+    assert static == pytest.approx(P)                # W = I while static
+
+
+def _linear_problem(seed):
+    rng = np.random.default_rng(seed)
+    n, m = 6, 3
+    A = rng.standard_normal((1, n, n))
+    P0 = A @ np.swapaxes(A, -1, -2) + np.eye(n)
+    Phi = np.eye(n)[None] + 0.1 * rng.standard_normal((1, n, n))
+    H = np.zeros((1, m, n))
+    H[0, np.arange(m), np.arange(m)] = 1.0
+    return P0, Phi, H
+
+
+@pytest.mark.parametrize("policy", [RobustAdaptive(), SelectiveWeights()],
+                         ids=["rakf", "swakf"])
+def test_small_residuals_or_a_static_carrier_give_the_kf(policy):
+    P0, Phi, H = _linear_problem(3)
+    R = np.eye(3)[None] * 0.5
+    for z, motion in ((np.array([[0.3, -0.2, 0.1]]), True),       # alpha = 1, W = I
+                      (np.array([[30.0, -20.0, 10.0]]), False)):   # static: classic KF
+        out = []
+        for adaptation in (NoAdaptation(), policy):
+            filt = GaussianFilter("f", LinearizationRule(), adaptation)
+            filt.reset(np.zeros((1, 6)), P0)
+            filt.predict(Transition(noise=np.eye(6)[None] * 0.01, matrix=Phi))
+            filt.update(Observation(noise=R, matrix=H, z=z, motion=np.array([motion]),
+                                    directions=H))
+            out.append((filt.x.copy(), filt.P.copy()))
+        np.testing.assert_allclose(out[1][0], out[0][0], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(out[1][1], out[0][1], rtol=1e-12, atol=1e-15)
+
+
+# --- the error model against the strapdown -----------------------------------------------------
+@pytest.fixture(scope="module")
+def ideal_motion(tmp_path_factory):
+    """An ideal-sensor episode of the short figure-8."""
+    path = short_scenario(tmp_path_factory.mktemp("p001"))
+    config = load_scenario(path).with_options(duration=120.0)
+    return simulate(config, seed=3, ideal=True)
+
+
+def _inputs(episode, start: float, seconds: int) -> GpsInsInputs:
+    """The model's inputs from the truth at ``start`` s (INS started on the truth), 1 s
+    epochs; GPS not used (NaN)."""
+    tr, dt = episode.truth, episode.config.imu_interval
+    i0, per = int(round(start / dt)), int(round(1.0 / dt))
+    d = lambda a: a[i0: i0 + seconds * per].reshape(1, seconds, per, 3)  # noqa: E731
+    nan = np.full((1, seconds + 1), np.nan)
+    return GpsInsInputs(
+        t=np.arange(seconds + 1.0), imu_dt=dt, dtheta=d(episode.dtheta), dv=d(episode.dv),
+        gps_lat=nan, gps_lon=nan, gps_h=nan, gps_v_n=np.full((1, seconds + 1, 3), np.nan),
+        gps_heading_sigma=nan, lever_arm_b=np.zeros((1, 3)), q_b_n0=tr.q_s_n[i0][None],
+        v_n0=tr.v_n[i0][None], lat0=tr.lat[i0][None], lon0=tr.lon[i0][None],
+        h0=tr.h[i0][None])
+
+
+TUNING = LooseTuning(position_sigma=1.0, velocity_sigma=0.1, attitude_sigma=(0.01,) * 3,
+                     gyro_bias_sigma=1e-5, accel_bias_sigma=1e-4, gyro_noise_density=0.0,
+                     accel_noise_density=0.0, gps_position_sigma_h=0.02,
+                     gps_position_sigma_v=0.03, gps_velocity_sigma=0.02)
+
+
+def _ins_ecef(model):
+    s = model.ins.state
+    C_ne = C_n_e(s.lat, s.lon)
+    return (geodetic_to_ecef(s.lat, s.lon, s.h), np.einsum("bij,bj->bi", C_ne, s.v_n),
+            C_ne @ quat_to_dcm(s.q_b_n))
+
+
+def test_error_model_propagates_errors_as_the_strapdown_does(ideal_motion):
+    """x0 (position, velocity, misalignment, drift, bias) put into an INS in motion (turns
+    included) grows over 10 s as Phi predicts, within 2 % per block."""
+    seconds = 10
+    inputs = _inputs(ideal_motion, 70.0, seconds)
+    reference = LooselyCoupledModel(inputs, TUNING)
+    x0 = np.array([3.0, -2.0, 1.0, 0.2, -0.1, 0.05, 2e-4, -3e-4, 1e-3,
+                   2e-5, -1e-5, 3e-5, 1e-3, -2e-3, 1.5e-3])
+    r, v, C = _ins_ecef(reference)
+    perturbed_inputs = _inputs(ideal_motion, 70.0, seconds)
+    C_wrong = rotvec_to_dcm(-x0[6:9]) @ C[0]          # C~ = (I - [phi x]) C
+    from models.earth import ecef_to_geodetic
+    lat, lon, h = ecef_to_geodetic(r[0] + x0[:3])
+    C_en = C_n_e(lat, lon).T
+    perturbed_inputs.q_b_n0 = dcm_to_quat(C_en @ C_wrong)[None]
+    perturbed_inputs.v_n0 = (C_en @ (v[0] + x0[3:6]))[None]
+    perturbed_inputs.lat0, perturbed_inputs.lon0 = np.array([lat]), np.array([lon])
+    perturbed_inputs.h0 = np.array([h])
+    perturbed = LooselyCoupledModel(perturbed_inputs, TUNING)
+    perturbed.gyro_bias, perturbed.accel_bias = -x0[None, 9:12], -x0[None, 12:15]
+    x = x0[None]
+    for k in range(seconds):
+        Phi = reference.transition(k).matrix
+        perturbed.transition(k)
+        x = np.einsum("bij,bj->bi", Phi, x)
+    r_ref, v_ref, C_ref = _ins_ecef(reference)
+    r_p, v_p, C_p = _ins_ecef(perturbed)
+    actual_phi = -np.array([(C_p @ C_ref[0].T)[0, 2, 1] - (C_p @ C_ref[0].T)[0, 1, 2],
+                            (C_p @ C_ref[0].T)[0, 0, 2] - (C_p @ C_ref[0].T)[0, 2, 0],
+                            (C_p @ C_ref[0].T)[0, 1, 0] - (C_p @ C_ref[0].T)[0, 0, 1]]) / 2
+    for actual, predicted, start in ((r_p - r_ref, x[:, 0:3], x0[0:3]),
+                                     (v_p - v_ref, x[:, 3:6], x0[3:6]),
+                                     (actual_phi[None], x[:, 6:9], x0[6:9])):
+        growth = np.linalg.norm(predicted - start)
+        assert growth > 0.0
+        assert np.linalg.norm(actual - predicted) < 0.02 * growth + 1e-3 * np.linalg.norm(
+            start), (actual, predicted)
+
+
+# --- the campaign -----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def outage_campaign(tmp_path_factory):
+    """2 episodes, 3 schemes, a 60 s GPS outage in the middle of the motion phase."""
+    path = short_scenario(tmp_path_factory.mktemp("p001o"))
+    exp = Paper001Experiment(scenario=path, coarse_duration=30.0, outage=60.0)
+    return run_campaign(exp, episodes=2, seed=5, workers=2, progress=False)
+
+
+def test_outage_keeps_the_filters_consistent_and_they_reconverge(outage_campaign):
+    summary = outage_campaign.summary()["schemes"]
+    assert outage_campaign.experiment.outage_window(
+        outage_campaign.experiment.scenario_config()) == (110.0, 170.0)
+    for name, s in summary.items():
+        o = s["outage"]
+        assert s["diverged_fraction"] == 0.0, name
+        # Free inertial for 60 s: metres of drift, within the filter's own 3 sigma, and
+        # back to the pre-outage position and velocity accuracy within 60 s of the first
+        # fix (of the 70 s left).
+        assert o["max_horizontal_error_m"] > 0.1, name
+        assert o["error_over_3sigma"] < 1.0, (name, o)
+        assert o["reconvergence_s"] <= 60.0, (name, o)
+
+
+def test_gps_outlier_is_down_weighted_by_the_robust_filters(tmp_path):
+    """A 10 m east jump in the fix at 60 s (a scenario-file fault)."""
+    path = short_scenario(tmp_path, "outliers = [[60.0, 10.0, 0.0, 0.0]]")
+    exp = Paper001Experiment(scenario=path, coarse_duration=30.0, fine_duration=50.0)
+    summary = run_campaign(exp, episodes=2, seed=6, workers=2, progress=False).summary()
+    summary = summary["schemes"]
+    jump = {name: s["outliers"][0]["horizontal_error_after_m"]
+            - s["outliers"][0]["horizontal_error_before_m"] for name, s in summary.items()}
+    assert jump["lckf"] > 0.5                      # the classic KF takes the 10 m jump in
+    assert summary["lckf"]["outliers"][0]["position_weight"] is None
+    for name in ("rakf", "swakf"):
+        assert summary[name]["outliers"][0]["position_weight"] < 1e-3, name
+        assert jump[name] < 0.2 * jump["lckf"], jump
+
+
+def test_classic_filter_is_consistent_against_the_truth(outage_campaign):
+    run = next(r for r in outage_campaign.runs if r.filter == "lckf")
+    nees = run.nees[:, 1:]
+    # 15 states: the mean NEES of a consistent filter is 15.
+    assert 5.0 < np.nanmean(nees) < 30.0
+
+
+# --- bad input -----------------------------------------------------------------------------------
+def test_bad_input_gives_one_line_errors(tmp_path):
+    path = short_scenario(tmp_path)
+    with pytest.raises(ConfigError, match=r"--outage 500 s: the window"):
+        Paper001Experiment(scenario=path, outage=500.0).scenario_config()
+    with pytest.raises(ConfigError, match="heading_min_speed = -1 m/s must be >= 0"):
+        Paper001Experiment(scenario=path, heading_min_speed=-1.0).scenario_config()
+    with pytest.raises(ConfigError, match="unknown filter 'xkf'"):
+        Paper001Experiment(scenario=path).check_filters(["xkf"])
+    bad = short_scenario(tmp_path, "heading_min_speed = -2.0")
+    with pytest.raises(ConfigError, match="gps.heading_min_speed must be finite and >= 0"):
+        load_scenario(bad)
+    bad = short_scenario(tmp_path, "outliers = [[80.0, 10.0]]")
+    with pytest.raises(ConfigError, match=r"gps.outliers must be a list of \(time_s"):
+        load_scenario(bad)
