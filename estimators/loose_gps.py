@@ -65,6 +65,11 @@ class LooseTuning:
     heading: bool = True
     heading_min_speed: float = 5.0
     motion_speed: float = 0.5
+    heading_offset_b: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """From the antenna to the body point whose velocity is along the body's forward axis
+    (m, body frame): the GPS heading is that of v_G + C_b^e (w_eb x offset). Zero (001):
+    the antenna's own track heading, off the body heading by the kinematic sideslip
+    (distance ahead of the rear axle / turn radius)."""
 
 
 @dataclass
@@ -240,13 +245,18 @@ class LooselyCoupledModel(FilterModel):
         self._k = k + 1
         C_b_n, C_ne, C_b_e, r_e, v_e = self._navigation()
         lever_r, lever_v = self._lever(C_b_e)
-        r_g, v_g, _ = self._gps(k + 1)
+        r_g, v_g, C_ne_g = self._gps(k + 1)
         C_en = np.swapaxes(C_ne, -1, -2)
         z = np.full((B, 7), np.nan)
         z[:, 0:3] = r_e + lever_r - r_g
         z[:, 3:6] = v_e + lever_v - v_g
         speed_gps = np.hypot(inp.gps_v_n[:, k + 1, 0], inp.gps_v_n[:, k + 1, 1])
-        psi_g = np.arctan2(inp.gps_v_n[:, k + 1, 0], inp.gps_v_n[:, k + 1, 1])
+        v_track = inp.gps_v_n[:, k + 1]
+        if any(tu.heading_offset_b):
+            w_eb = self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E)
+            v_track = v_track + np.einsum("bji,bj->bi", C_ne_g, np.einsum(
+                "bij,bj->bi", C_b_e, np.cross(w_eb, np.asarray(tu.heading_offset_b))))
+        psi_g = np.arctan2(v_track[:, 0], v_track[:, 1])
         use = (tu.heading & (speed_gps >= tu.heading_min_speed)
                & np.isfinite(inp.gps_heading_sigma[:, k + 1]))
         z[:, HEADING] = np.where(use, wrap_angle(heading_cw(C_b_n) - psi_g), np.nan)

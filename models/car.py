@@ -27,6 +27,10 @@ G_LATERAL_MAX = 0.4 * 9.81
 """Largest steady lateral acceleration the controller is allowed to ask, m/s^2."""
 
 
+WHEEL_CENTRE_Z = -0.25
+"""Wheel centres below the chassis origin at rest, m."""
+
+
 @dataclass(frozen=True)
 class CarParams:
     """Car geometry (m), masses (kg), suspension and tyres. imu_offset_b: IMU site from the
@@ -47,11 +51,18 @@ class CarParams:
     roughness_rms: float = 0.0
     """Road roughness (heightfield) RMS height, m; 0 for a smooth plane."""
 
+    @property
+    def rear_axle_b(self) -> tuple[float, float, float]:
+        """Centre of the rear axle from the chassis origin (R, F, U), m, at rest: the
+        point of the body whose velocity is along the body's forward axis when the
+        rear tyres do not slip."""
+        return (0.0, -self.wheelbase / 2, WHEEL_CENTRE_Z)
+
 
 def car_mjcf(p: CarParams, roughness_seed: int = 0, extent: float = 600.0) -> tuple[str, dict]:
     """MJCF of the car and the ground; returns (xml, assets) (the heightfield data)."""
     hw, hl = p.track / 2, p.wheelbase / 2
-    z_wheel = -0.25  # wheel centre below the chassis origin at rest
+    z_wheel = WHEEL_CENTRE_Z
     spring_ref = 0.0
     wheels = []
     for name, x, y, steer in (("fl", -hw, hl, True), ("fr", hw, hl, True),

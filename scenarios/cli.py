@@ -126,6 +126,10 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--outage", type=_positive_float("--outage", allow_zero=True), metavar="S",
                        help="paper001: a GPS outage of S seconds in the middle of the "
                        "motion phase (default: none)")
+    bench.add_argument("--heading-point", choices=["antenna", "rear-axle"],
+                       help="paper001: the body point whose velocity gives the GPS heading: "
+                       "the antenna (the paper) or the rear axle (no kinematic sideslip; "
+                       "default: antenna)")
     bench.add_argument("--out", metavar="DIR", help="directory for results.csv, coarse.csv, "
                        "timeseries.npz, the plots and the per-episode files (default: none)")
     bench.add_argument("--json", metavar="FILE",
@@ -205,6 +209,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if args.paper != "paper001":
             raise ConfigError(f"--outage exists for paper001 only, not {args.paper}")
         settings["outage"] = args.outage
+    if args.heading_point is not None:
+        if args.paper != "paper001":
+            raise ConfigError(f"--heading-point exists for paper001 only, not {args.paper}")
+        settings["heading_point"] = args.heading_point
     exp = experiment(args.paper, args.setup, **settings)
     filters = (list(exp.default_filters) if args.filters is None
                else [f.strip() for f in args.filters.split(",") if f.strip()])

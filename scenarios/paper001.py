@@ -33,6 +33,7 @@ from sensors.imu import ImuTuning
 
 START = "coarse"
 SCHEMES = ("lckf", "rakf", "swakf")
+HEADING_POINTS = ("antenna", "rear-axle")
 AXES_ENU = ("E", "N", "U")
 
 
@@ -51,8 +52,12 @@ class Paper001Experiment(Experiment):
     adaptive filters act above this INS speed (classic KF while static); outage: length
     of a GPS outage in the middle of the motion phase (0: none); outage_start: its start
     (None: centred in the motion phase); turn_rate_deg_s: epochs turning faster than this
-    count as "turns" in the heading table; heading_threshold_arcmin: heading convergence
-    threshold.
+    count as "turns" in the heading table; heading_point: the body point whose velocity
+    direction the GPS heading is taken to be: "antenna" (001: the antenna's own track,
+    off the body heading by the kinematic sideslip, about (antenna - rear axle) / turn
+    radius) or "rear-axle" (the GPS velocity moved to the rear axle's centre with the
+    INS's rate and attitude, where the velocity is along the body if the rear tyres do
+    not slip); heading_threshold_arcmin: heading convergence threshold.
     """
 
     scenario: str = "figure8-gps"
@@ -66,6 +71,7 @@ class Paper001Experiment(Experiment):
     outage: float = 0.0
     outage_start: float | None = None
     turn_rate_deg_s: float = 3.0
+    heading_point: str = "antenna"
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 30.0
     default_filters: tuple[str, ...] = SCHEMES
@@ -126,6 +132,9 @@ class Paper001Experiment(Experiment):
         if not (np.isfinite(self.heading_min_speed) and self.heading_min_speed >= 0.0):
             raise ConfigError(f"heading_min_speed = {self.heading_min_speed:g} m/s must be "
                               ">= 0")
+        if self.heading_point not in HEADING_POINTS:
+            raise ConfigError(f"--heading-point {self.heading_point!r}; valid: "
+                              + ", ".join(HEADING_POINTS))
         if not (np.isfinite(self.outage) and self.outage >= 0.0):
             raise ConfigError(f"--outage {self.outage:g} s must be >= 0")
         if self.outage > 0.0:
@@ -138,6 +147,9 @@ class Paper001Experiment(Experiment):
     def tuning(self, config: ScenarioConfig, heading: bool = True) -> LooseTuning:
         imu = ImuTuning.from_spec(config.imu)
         gps = config.gps
+        motion = config.motion
+        offset = (np.zeros(3) if self.heading_point == "antenna" else
+                  np.subtract(motion.car_params().rear_axle_b, motion.gps_antenna_b))
         return LooseTuning(
             position_sigma=max(gps.position_sigma_h, gps.position_sigma_v, 0.01),
             velocity_sigma=max(gps.velocity_sigma, 0.01),
@@ -148,7 +160,8 @@ class Paper001Experiment(Experiment):
             accel_noise_density=max(imu.accel_noise_density, self.accel_noise_density),
             gps_position_sigma_h=gps.position_sigma_h, gps_position_sigma_v=gps.position_sigma_v,
             gps_velocity_sigma=gps.velocity_sigma, heading=heading,
-            heading_min_speed=self.heading_min_speed, motion_speed=self.motion_speed)
+            heading_min_speed=self.heading_min_speed, motion_speed=self.motion_speed,
+            heading_offset_b=tuple(float(v) for v in offset))
 
     def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
                         ) -> "Paper001Episode":
