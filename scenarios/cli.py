@@ -149,8 +149,8 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        "'ray://HOST:10001'; default: start a local instance)")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
                          "its stored baseline; exit 1 when a metric moved beyond tolerance")
-    reg.add_argument("--papers", default="paper002,paper003",
-                     help="comma-separated papers (default: paper002,paper003)")
+    reg.add_argument("--papers", default=",".join(PAPERS),
+                     help="comma-separated papers (default: " + ",".join(PAPERS) + ")")
     reg.add_argument("--update", action="store_true",
                      help="store this run's metrics as the new baselines (default: compare)")
     reg.add_argument("--baselines", metavar="DIR",

@@ -381,9 +381,10 @@ def scheme_metrics(result: CampaignResult, run) -> dict:
 def outage_metrics(result: CampaignResult, run) -> dict | None:
     """During the experiment's GPS outage (the epochs without a fix): the largest
     horizontal position error (m, at the outage's last epoch) and the filter's own
-    3-sigma horizontal bound there (m), their ratio; after it: the time (s) until the
-    horizontal position and velocity errors stay below twice their RMS over the 60 s
-    before the outage (mean over episodes; inf if they never do)."""
+    3-sigma horizontal bound there (m), their ratio; after it, the re-convergence time
+    (s): from the first fix to the start of the first 10-s window whose RMS horizontal
+    position and velocity errors are within twice their RMS over the 60 s before the
+    outage (mean over episodes; inf if none is)."""
     exp = result.experiment
     if exp.outage <= 0.0:
         return None
@@ -401,19 +402,17 @@ def outage_metrics(result: CampaignResult, run) -> dict | None:
     C_en = np.swapaxes(C_n_e(lat, lon), -1, -2)
     P_n = C_en @ run.result.P[:, k_end, POSITION, POSITION] @ np.swapaxes(C_en, -1, -2)
     bound = 3.0 * np.sqrt(P_n[:, 0, 0] + P_n[:, 1, 1])
+    window = 10
     rms_before = lambda e: np.sqrt(np.mean(e[:, before] ** 2, axis=1))  # noqa: E731
+    running = lambda e: np.sqrt(np.convolve(e ** 2, np.ones(window) / window,  # noqa: E731
+                                            mode="valid"))
     level, speed_level = 2.0 * rms_before(horizontal), 2.0 * rms_before(speed_error)
-    after = t >= end
+    k_after = int(np.flatnonzero(t >= end)[0])
     recovered = []
     for b in range(horizontal.shape[0]):
-        above = np.flatnonzero(after & ((horizontal[b] > level[b])
-                                        | (speed_error[b] > speed_level[b])))
-        if above.size == 0:
-            recovered.append(0.0)
-        elif above[-1] == t.size - 1:          # still above at the end of the run
-            recovered.append(np.inf)
-        else:
-            recovered.append(float(t[above[-1] + 1] - end))
+        back = np.flatnonzero((running(horizontal[b, k_after:]) <= level[b])
+                              & (running(speed_error[b, k_after:]) <= speed_level[b]))
+        recovered.append(float(t[k_after + back[0]] - end) if back.size else np.inf)
     return {"window_s": [start, end], "max_horizontal_error_m": float(worst.mean()),
             "horizontal_3sigma_m": float(bound.mean()),
             "error_over_3sigma": float(np.mean(worst / bound)),

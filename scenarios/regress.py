@@ -5,7 +5,7 @@ A baseline (``tests/baselines/regress_<paper>.json``) holds the campaign's setti
 its metrics flattened to "path -> value" (the JSON summary's paths, plus each run's mean
 final NEES). Tolerances per kind of metric, and why:
 
-- errors in arcmin or deg, and NEES: 1e-4 relative (with an absolute floor of 1e-6):
+- errors in arcmin, deg, m or m/s, and NEES: 1e-4 relative (with an absolute floor of 1e-6):
   another CPU or BLAS changes the last bits, which the fading-factor filters amplify
   (measured: up to 1.4e-6 relative from a last-bit change of MuJoCo's kinematics), while
   any change of the physics, the sensors or a filter moves them by far more than 1e-3;
@@ -27,6 +27,8 @@ from scenarios.config import ConfigError
 BASELINE_DIR = Path(__file__).resolve().parents[1] / "tests" / "baselines"
 
 CAMPAIGNS = {
+    "paper001": {"episodes": 2, "seed": 11, "filters": ["lckf", "rakf", "swakf"],
+                 "experiment": {"fine_duration": 300.0}},
     "paper002": {"episodes": 8, "seed": 3, "filters": ["ekf", "ukf", "sghkf-2", "sghkf-4"]},
     "paper003": {"episodes": 4, "seed": 7,
                  "filters": ["kf", "sakf", "makf", "imakf", "makf-n", "kf-sway", "sakf-r",

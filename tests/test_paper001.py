@@ -299,7 +299,10 @@ def test_gps_outlier_is_down_weighted_by_the_robust_filters(tmp_path):
     assert summary["lckf"]["outliers"][0]["position_weight"] is None
     for name in ("rakf", "swakf"):
         assert summary[name]["outliers"][0]["position_weight"] < 1e-3, name
-        assert jump[name] < 0.2 * jump["lckf"], jump
+    # rakf rejects it; swakf rejects the observation too, but its state weights inflate
+    # the predicted position by the same misclosure, so part of the jump gets through.
+    assert jump["rakf"] < 0.05 * jump["lckf"], jump
+    assert jump["swakf"] < 0.5 * jump["lckf"], jump
 
 
 def test_classic_filter_is_consistent_against_the_truth(outage_campaign):
@@ -327,3 +330,25 @@ def test_bad_input_gives_one_line_errors(tmp_path):
     bad = short_scenario(tmp_path, "outliers = [[80.0, 10.0]]")
     with pytest.raises(ConfigError, match=r"gps.outliers must be a list of \(time_s"):
         load_scenario(bad)
+
+
+def test_bench_command_writes_the_paper_table_and_json(tmp_path, capsys):
+    from scenarios.cli import main
+    path = tmp_path / "tiny.toml"
+    path.write_text(SHORT.format(extra="").replace("duration_s = 240.0", "duration_s = 110.0")
+                    .replace("start_time_s = 40.0", "start_time_s = 60.0"))
+    summary = tmp_path / "summary.json"
+    assert main(["bench", "paper001", "--scenario", str(path), "--episodes", "1",
+                 "--outage", "10", "--heading-point", "rear-axle", "--json", str(summary),
+                 "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "std of the filtered INS - GPS differences" in out and "GPS outage" in out
+    import json
+    schemes = json.loads(summary.read_text())["schemes"]
+    assert sorted(schemes) == ["lckf", "rakf", "swakf"]
+    for s in schemes.values():
+        assert len(s["pos_std_m"]) == 3 and len(s["vel_std_m_s"]) == 3
+        assert 0.005 < s["pos_std_m"][0] < 0.1          # RTK: centimetres
+        assert s["outage"]["window_s"] == [80.0, 90.0]
+        assert s["diverged_fraction"] == 0.0
+    assert schemes["lckf"]["improvement_pct"]["pos"] == [0.0, 0.0, 0.0]
