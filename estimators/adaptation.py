@@ -53,11 +53,14 @@ class AdaptationContext:
 @dataclass(frozen=True)
 class Adjustment:
     """A policy's decision: P_pred (B, n, n) and R (B, m, m), None = unchanged
-    (PhiPPhi + Q and the model's R); factors (B, k) for the record."""
+    (PhiPPhi + Q and the model's R); factors (B, k) for the record; rejected (B, m):
+    measurement components to leave out of this update (an outlier given zero weight:
+    exactly zero gain), None = none."""
 
     P_pred: np.ndarray | None
     R: np.ndarray | None
     factors: np.ndarray
+    rejected: np.ndarray | None = None
 
 
 def _sandwich(H: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -310,31 +313,49 @@ def _moving(ctx: AdaptationContext) -> np.ndarray:
     return np.ones(batch, bool) if ctx.motion is None else np.asarray(ctx.motion, bool)
 
 
-def robust_noise(ctx: AdaptationContext, acting: np.ndarray, k0: float, k1: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """IGG-III equivalent observation weights w (B, m) of the standardised predicted
-    residuals e_i / sqrt(S_ii) (1 where missing or where ``acting`` (B,) is False) and
-    the equivalent noise R_bar = D R D, D = diag(w^-1/2), w floored at 1e-6."""
-    valid = ctx.valid
-    diag_S = np.diagonal(ctx.S, axis1=-2, axis2=-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        standardized = np.where(valid, ctx.innovation / np.sqrt(diag_S), 0.0)
-    w = np.where(acting[:, None] & valid, igg3_weights(standardized, k0, k1), 1.0)
-    d = 1.0 / np.sqrt(np.maximum(w, 1e-6))
-    return d[:, :, None] * ctx.R * d[:, None, :], w
+def equivalent_noise(R: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """R_bar = D R D, D = diag(w^-1/2), for observation weights w (B, m); components with
+    w = 0 keep their R (they are rejected: ``Adjustment.rejected``)."""
+    d = 1.0 / np.sqrt(np.where(w > 0.0, w, 1.0))
+    return d[:, :, None] * R * d[:, None, :]
 
 
 class _RobustObservations(AdaptationPolicy):
-    """Shared part of Yang's family (ALGORITHMS 5.2-5.3): IGG-III observation weights
-    (k0, k1), acting only in motion (001: the classic KF while static)."""
+    """Shared part of Yang's family (ALGORITHMS 5.2-5.3): IGG-III weights (k0, k1) of the
+    standardised predicted residuals e_i / sqrt(S_ii), acting only in motion (001: the
+    classic KF while static). A component weighed 0 is rejected (left out), but not more
+    than ``max_rejections`` epochs in a row: a misclosure that persists is the state's,
+    not an outlier's, and rejecting it for ever would lock the filter out (after a GPS
+    outage that left it overconfident)."""
 
-    def __init__(self, k0: float = 2.0, k1: float = 6.0) -> None:
+    def __init__(self, k0: float = 2.0, k1: float = 6.0, max_rejections: int = 3) -> None:
         if not 0.0 < k0 < k1:
             raise ValueError(f"need 0 < k0 < k1, got k0={k0}, k1={k1}")
-        self.k0, self.k1 = k0, k1
+        if max_rejections < 0:
+            raise ValueError(f"max_rejections must be >= 0, got {max_rejections}")
+        self.k0, self.k1, self.max_rejections = k0, k1, max_rejections
+        self._streak: np.ndarray | None = None
+
+    def reset(self, batch: int) -> None:
+        self._streak = None
 
     def _acting(self, ctx: AdaptationContext) -> np.ndarray:
         return _moving(ctx) & ctx.valid.any(-1)
+
+    def _weights(self, ctx: AdaptationContext, acting: np.ndarray) -> np.ndarray:
+        """IGG-III weights (B, m): 1 where missing or not acting; a rejection streak
+        longer than max_rejections ends with weight 1."""
+        valid = ctx.valid
+        diag_S = np.diagonal(ctx.S, axis1=-2, axis2=-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            standardized = np.where(valid, ctx.innovation / np.sqrt(diag_S), 0.0)
+        w = np.where(acting[:, None] & valid, igg3_weights(standardized, self.k0, self.k1),
+                     1.0)
+        if self._streak is None or self._streak.shape != w.shape:
+            self._streak = np.zeros(w.shape, int)
+        w = np.where((w == 0.0) & (self._streak >= self.max_rejections), 1.0, w)
+        self._streak = np.where(valid, np.where(w == 0.0, self._streak + 1, 0), self._streak)
+        return w
 
 
 class RobustAdaptive(_RobustObservations):
@@ -342,30 +363,34 @@ class RobustAdaptive(_RobustObservations):
     adaptive factor alpha from the predicted residuals (m < n),
     Delta = sqrt(V^T V / tr(H P_pred H^T + R)), three-segment (c0, c1), inflates the
     prediction, P_pred / alpha; IGG-III weights of the standardised predicted residuals
-    inflate R (``robust_noise``). Only in motion. Factors: alpha, then the weights."""
+    inflate R (``equivalent_noise``), and a component they weigh 0 is left out of the
+    update and of Delta. Only in motion. Factors: alpha, then the weights."""
 
     name = "robust-adaptive"
     n_factors = 1
 
     def __init__(self, c0: float = 1.0, c1: float = 3.0, k0: float = 2.0,
-                 k1: float = 6.0) -> None:
-        super().__init__(k0, k1)
+                 k1: float = 6.0, max_rejections: int = 3) -> None:
+        super().__init__(k0, k1, max_rejections)
         if not 0.0 < c0 < c1:
             raise ValueError(f"need 0 < c0 < c1, got c0={c0}, c1={c1}")
         self.c0, self.c1 = c0, c1
 
     def adapt(self, ctx):
-        valid, e = ctx.valid, ctx.innovation
+        acting = self._acting(ctx)
+        w = self._weights(ctx, acting)
+        R = equivalent_noise(ctx.R, w)
+        kept = ctx.valid & (w > 0.0)       # a rejected outlier says nothing of the state
+        e = ctx.innovation
         diag_S = np.diagonal(ctx.S, axis1=-2, axis2=-1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            delta = np.sqrt(np.sum(np.where(valid, e * e, 0.0), -1)
-                            / np.sum(np.where(valid, diag_S, 0.0), -1))
-        acting = self._acting(ctx)
+            delta = np.sqrt(np.sum(np.where(kept, e * e, 0.0), -1)
+                            / np.sum(np.where(kept, diag_S, 0.0), -1))
         alpha = np.where(acting, adaptive_factor(np.nan_to_num(delta), self.c0, self.c1), 1.0)
-        R, w = robust_noise(ctx, acting, self.k0, self.k1)
         self.n_factors = 1 + w.shape[-1]
         P_pred = (ctx.PhiPPhi + ctx.Q) / alpha[:, None, None]
-        return Adjustment(P_pred, R, np.concatenate([alpha[:, None], w], -1))
+        return Adjustment(P_pred, R, np.concatenate([alpha[:, None], w], -1),
+                          rejected=w == 0.0)
 
 
 class SelectiveWeights(_RobustObservations):
@@ -376,16 +401,18 @@ class SelectiveWeights(_RobustObservations):
     w_i = m sigma_i / |L_i| if |L_i| > m sigma_i, else 1; P_pred <- W^-1 P_pred W^-1 with
     W^-1 = I + sum_i (1/w_i - 1) u_i u_i^T (001: diag(1/w_i) on position and velocity,
     R_Le^T diag(1, 1, 1/w_psi) R_Le on the misalignment, 1 on the sensor errors); the
-    observations keep their IGG-III weights (``robust_noise``; robust=False: R as
-    modelled). Only in motion (001: W = I while static). Factors: the state weights w_i,
-    then the observation weights."""
+    observations keep their IGG-III weights (``equivalent_noise``; robust=False: R as
+    modelled; ALGORITHMS 5.3 gives the selective-weight filter no observation weights,
+    001's "the robust adaptive filter's model" does), and an observation they reject
+    forms no state weight. Only in motion (001: W = I while static). Factors: the state
+    weights w_i, then the observation weights."""
 
     name = "selective-weights"
     n_factors = 1
 
     def __init__(self, m: float = 2.5, robust: bool = True, k0: float = 2.0,
-                 k1: float = 6.0) -> None:
-        super().__init__(k0, k1)
+                 k1: float = 6.0, max_rejections: int = 3) -> None:
+        super().__init__(k0, k1, max_rejections)
         if not (np.isfinite(m) and m > 0.0):
             raise ValueError(f"selective-weight threshold m must be > 0, got {m}")
         self.m, self.robust = m, robust
@@ -398,14 +425,17 @@ class SelectiveWeights(_RobustObservations):
         sigma = np.sqrt(np.maximum(np.einsum("bin,bnk,bik->bi", U, J, U), 0.0))
         misclosure = np.abs(ctx.innovation)
         acting = self._acting(ctx)
-        measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None]
+        if self.robust:
+            w_obs = self._weights(ctx, acting)
+            R = equivalent_noise(ctx.R, w_obs)
+        else:
+            R, w_obs = None, np.ones(misclosure.shape)
+        # A rejected observation (an outlier) says nothing of the state: no state weight.
+        measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] & (w_obs > 0.0)
         outside = measured & (misclosure > self.m * sigma)
         with np.errstate(divide="ignore", invalid="ignore"):
             w = np.where(outside, self.m * sigma / misclosure, 1.0)
         W_inv = np.eye(J.shape[-1]) + np.einsum("bi,bin,bik->bnk", 1.0 / w - 1.0, U, U)
-        if self.robust:
-            R, w_obs = robust_noise(ctx, acting, self.k0, self.k1)
-        else:
-            R, w_obs = None, np.ones_like(w)
         self.n_factors = 2 * w.shape[-1]
-        return Adjustment(W_inv @ J @ W_inv, R, np.concatenate([w, w_obs], -1))
+        return Adjustment(W_inv @ J @ W_inv, R, np.concatenate([w, w_obs], -1),
+                          rejected=w_obs == 0.0)

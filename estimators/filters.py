@@ -152,6 +152,9 @@ class GaussianFilter:
                                 t=t)
         adjustment = self.adaptation.adapt(ctx)
         silent = ~valid.any(-1)[:, None, None]  # no measurement: no adaptation either
+        if adjustment.rejected is not None and adjustment.rejected.any():
+            valid = valid & ~adjustment.rejected
+            innovation = np.where(valid, innovation, 0.0)
         if adjustment.R is not None:
             R = np.where(silent, R, adjustment.R)
         if adjustment.P_pred is not None:

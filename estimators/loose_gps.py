@@ -40,6 +40,8 @@ GYRO, ACCEL = LAYOUT["gyro_bias"], LAYOUT["accel_bias"]
 MEASUREMENTS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z", "heading")
 HEADING = 6
 OMEGA_IE_E = np.array([0.0, 0.0, OMEGA_IE])
+RATE_WINDOW = 0.1
+"""The body rate in the lever-arm velocity is the mean over the epoch's last 0.1 s, s."""
 
 
 @dataclass(frozen=True)
@@ -47,7 +49,7 @@ class LooseTuning:
     """What the filter believes, SI. P0 sigmas: position (m), velocity (m/s), attitude
     (3,) along E, N, U (rad), gyro drift (rad/s), accelerometer bias (m/s^2); process
     white noise densities: gyro (rad/sqrt(s)) and accelerometer (m/s/sqrt(s)); GPS
-    sigmas: position horizontal and vertical (m), velocity (m/s, per axis); heading:
+    sigmas: position horizontal and vertical (m), velocity (m/s, per axis); use_heading:
     use the GPS heading observation; heading_min_speed: GPS horizontal speed (m/s) from
     which it is used; motion_speed: INS horizontal speed (m/s) above which the carrier
     counts as moving (adaptive policies act only then; 001: "classic KF while static")."""
@@ -62,7 +64,7 @@ class LooseTuning:
     gps_position_sigma_h: float
     gps_position_sigma_v: float
     gps_velocity_sigma: float
-    heading: bool = True
+    use_heading: bool = True
     heading_min_speed: float = 5.0
     motion_speed: float = 0.5
     heading_offset_b: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -126,12 +128,16 @@ def gravity_gradient(r_e: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndar
 
 class LooselyCoupledModel(FilterModel):
     """The 15-state loosely coupled model (see the module docstring) on B episodes; with
-    tuning.heading False it is the classic loosely coupled KF (position and velocity).
+    tuning.use_heading False it is the classic loosely coupled KF (position and velocity).
+
+    The INS starts where ``GpsInsInputs`` says; P0 assumes its position is a GPS fix less
+    the lever arm turned by the INS's own attitude, so the position error starts
+    correlated with the misalignment (dr = -[(C_b^e l) x] phi).
 
     It keeps the navigation solution after each feedback (``series``): lat, lon (rad),
-    h (m), v_n (m/s), the accumulated gyro_bias (rad/s) and accel_bias (m/s^2) estimates,
-    and gps_difference (m, m/s): corrected INS (at the antenna) minus GPS, E, N, U
-    position then velocity, NaN without a fix."""
+    h (m), v_n (m/s), C_b_n, the accumulated gyro_bias (rad/s) and accel_bias (m/s^2)
+    estimates, and gps_difference (m, m/s): corrected INS (at the antenna) minus GPS,
+    E, N, U position then velocity, NaN without a fix."""
 
     layout = LAYOUT
 
@@ -198,12 +204,17 @@ class LooselyCoupledModel(FilterModel):
     # --- FilterModel ----------------------------------------------------------------------
     def initial(self):
         tu, B = self.tuning, self.batch
-        C_b_n, C_ne, *_ = self._navigation()
+        C_b_n, C_ne, C_b_e, *_ = self._navigation()
         P = np.zeros((B, 15, 15))
         R_pos_n = np.diag([tu.position_sigma ** 2] * 3)
-        P[:, POSITION, POSITION] = C_ne @ R_pos_n @ np.swapaxes(C_ne, -1, -2)
+        P_phi = C_ne @ np.diag(np.square(tu.attitude_sigma)) @ np.swapaxes(C_ne, -1, -2)
+        L = -skew(np.einsum("bij,bj->bi", C_b_e, self.inputs.lever_arm_b))  # dr = L phi
+        P[:, POSITION, POSITION] = (C_ne @ R_pos_n @ np.swapaxes(C_ne, -1, -2)
+                                    + L @ P_phi @ np.swapaxes(L, -1, -2))
+        P[:, POSITION, PHI] = L @ P_phi
+        P[:, PHI, POSITION] = np.swapaxes(L @ P_phi, -1, -2)
         P[:, VELOCITY, VELOCITY] = np.eye(3) * tu.velocity_sigma ** 2
-        P[:, PHI, PHI] = C_ne @ np.diag(np.square(tu.attitude_sigma)) @ np.swapaxes(C_ne, -1, -2)
+        P[:, PHI, PHI] = P_phi
         P[:, GYRO, GYRO] = np.eye(3) * tu.gyro_bias_sigma ** 2
         P[:, ACCEL, ACCEL] = np.eye(3) * tu.accel_bias_sigma ** 2
         return np.zeros((B, 15)), P
@@ -214,7 +225,8 @@ class LooselyCoupledModel(FilterModel):
         dv = inp.dv[:, k] - self.accel_bias[:, None] * dt
         out = self.ins.run(dtheta, dv)
         S = dtheta.shape[1]
-        self._omega_ib_b = dtheta[:, -10:].mean(1) / dt
+        last = max(1, int(round(RATE_WINDOW / dt)))
+        self._omega_ib_b = dtheta[:, -last:].mean(1) / dt
         mid = S // 2
         C_b_n = quat_to_dcm(out["q_b_n"][:, mid])
         C_ne = C_n_e(out["lat"][:, mid], out["lon"][:, mid])
@@ -257,7 +269,7 @@ class LooselyCoupledModel(FilterModel):
             v_track = v_track + np.einsum("bji,bj->bi", C_ne_g, np.einsum(
                 "bij,bj->bi", C_b_e, np.cross(w_eb, np.asarray(tu.heading_offset_b))))
         psi_g = np.arctan2(v_track[:, 0], v_track[:, 1])
-        use = (tu.heading & (speed_gps >= tu.heading_min_speed)
+        use = (tu.use_heading & (speed_gps >= tu.heading_min_speed)
                & np.isfinite(inp.gps_heading_sigma[:, k + 1]))
         z[:, HEADING] = np.where(use, wrap_angle(heading_cw(C_b_n) - psi_g), np.nan)
         H = np.zeros((B, 7, 15))
@@ -274,7 +286,9 @@ class LooselyCoupledModel(FilterModel):
         R[:, HEADING, HEADING] = np.where(use, inp.gps_heading_sigma[:, k + 1], 1.0) ** 2
         directions = np.zeros((B, 7, 15))
         directions[:, np.arange(6), np.arange(6)] = 1.0
-        directions[:, HEADING, PHI] = C_en[:, 2]       # the local vertical in e: R_Le(3, :)
+        # 001 eqs. 17-20 weigh the heading about the local vertical, R_Le(3, :), even
+        # where H's heading row has tan(pitch) terms.
+        directions[:, HEADING, PHI] = C_en[:, 2]
         moving = np.hypot(self.ins.state.v_n[:, 0], self.ins.state.v_n[:, 1]) >= tu.motion_speed
         return Observation(noise=R * r_scale, matrix=H, z=z, t=float(self.t[k + 1]),
                            angles=(HEADING,), motion=moving, directions=directions)

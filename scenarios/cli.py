@@ -38,7 +38,7 @@ class _Version(argparse.Action):
         parser.exit(0)
 
 
-def _positive_float(field: str, allow_zero: bool = False):
+def _float_option(field: str, allow_zero: bool = False):
     """Parser of a finite number > 0 (>= 0 with allow_zero) for the option ``field``."""
     bound = ">= 0" if allow_zero else "> 0"
 
@@ -83,12 +83,12 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     sim = sub.add_parser("simulate", help="simulate one episode and write its data (.npz)")
     sim.add_argument("scenario", help="scenario name (" + ", ".join(scenario_names())
                      + ") or a .toml file")
-    sim.add_argument("--duration", type=_positive_float("--duration"), metavar="S",
+    sim.add_argument("--duration", type=_float_option("--duration"), metavar="S",
                      help="run length, s (default: the scenario's)")
     sim.add_argument("--seed", type=_seed, default=0, metavar="N",
                      help="episode seed (>= 0; default: 0)")
     sim.add_argument("--ideal", action="store_true", help="error-free sensors")
-    sim.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ",
+    sim.add_argument("--imu-rate", type=_float_option("--imu-rate"), metavar="HZ",
                      help="IMU output rate, Hz (default: the scenario's)")
     sim.add_argument("--out", required=True, metavar="FILE.npz",
                      help="output file (arrays and units: README, Data files)")
@@ -96,11 +96,11 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     fid = sub.add_parser("fidelity", help="check the truth: strapdown from the true state on "
                          "ideal sensors must track it")
     fid.add_argument("scenario", help="scenario name or .toml file")
-    fid.add_argument("--duration", type=_positive_float("--duration"), metavar="S",
+    fid.add_argument("--duration", type=_float_option("--duration"), metavar="S",
                      help="run length, s (default: the scenario's)")
     fid.add_argument("--seed", type=_seed, default=0, metavar="N",
                      help="episode seed (>= 0; default: 0)")
-    fid.add_argument("--imu-rate", type=_positive_float("--imu-rate"), metavar="HZ",
+    fid.add_argument("--imu-rate", type=_float_option("--imu-rate"), metavar="HZ",
                      help="IMU output rate, Hz (default: the scenario's)")
     bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison",
                            epilog=_bench_epilog() if bench_details else None,
@@ -123,7 +123,7 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--filters", help="comma-separated filter names (default: "
                        "lckf,rakf,swakf for paper001; ekf,ukf,sghkf-2,sghkf-4 for "
                        "paper002; kf,sakf,makf,imakf for paper003)")
-    bench.add_argument("--outage", type=_positive_float("--outage", allow_zero=True), metavar="S",
+    bench.add_argument("--outage", type=_float_option("--outage", allow_zero=True), metavar="S",
                        help="paper001: a GPS outage of S seconds in the middle of the "
                        "motion phase (default: none)")
     bench.add_argument("--heading-point", choices=["antenna", "rear-axle"],

@@ -220,6 +220,8 @@ class ScenarioConfig:
         if abs(self.duration * self.imu_rate - self.imu_samples) > 1e-6 or self.imu_samples < 2:
             raise ConfigError(f"run.duration = {self.duration:g} s must be a whole number (>= 2)"
                               f" of IMU intervals of {self.imu_interval:g} s")
+        for when, *_ in (self.gps.outliers if self.gps is not None else ()):
+            _check_range("gps.outliers time", when, 0.0, self.duration, "s")
         if self.world in PHYSICS_RATE:
             rate = PHYSICS_RATE[self.world]
             ratio = rate / self.imu_rate

@@ -26,9 +26,9 @@ class GpsSpec:
     outliers: tuple[tuple[float, float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "outages", _windows(self.outages, 2, "outages",
+        object.__setattr__(self, "outages", _rows(self.outages, 2, "outages",
                                                      "(start_s, end_s)"))
-        object.__setattr__(self, "outliers", _windows(self.outliers, 4, "outliers",
+        object.__setattr__(self, "outliers", _rows(self.outliers, 4, "outliers",
                                                       "(time_s, east_m, north_m, up_m)"))
         if not 0.0 < self.rate <= 100.0:
             raise ValueError(f"gps.rate = {self.rate} Hz is out of range (0, 100]")
@@ -42,8 +42,8 @@ class GpsSpec:
                 raise ValueError(f"gps.outages: window ({start}, {end}) must have end > start")
 
 
-def _windows(value, width: int, name: str, shape: str) -> tuple[tuple[float, ...], ...]:
-    """A list of ``width``-number rows as a tuple of float tuples; ValueError naming
+def _rows(value, width: int, name: str, shape: str) -> tuple[tuple[float, ...], ...]:
+    """A list of rows of ``width`` numbers as a tuple of float tuples; ValueError naming
     gps.<name> otherwise."""
     try:
         rows = tuple(tuple(float(v) for v in row) for row in value)
