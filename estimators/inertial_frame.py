@@ -183,3 +183,62 @@ def static_coarse_alignment(f_b: np.ndarray, omega_ib_b: np.ndarray, lat: float
     f_n = np.array([0.0, 0.0, 1.0])
     w_n = np.array([0.0, np.cos(lat), np.sin(lat)])
     return triad(f_n, w_n) @ triad(np.asarray(f_b, float), np.asarray(omega_ib_b, float)).T
+
+
+# --- moving base: velocity-integration alignment (ALGORITHMS 1.2) --------------------------
+
+def velocity_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
+                             fix_index: np.ndarray, lat: np.ndarray, h: np.ndarray,
+                             v_n: np.ndarray, lever_arm_b: np.ndarray | None = None
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """Coarse alignment on a moving base from GNSS velocity (ALGORITHMS 1.10-1.12, 1.14).
+
+    dtheta, dv (M, 3): the window's IMU increments (rad, m/s, body frame b) of interval
+    dt (s); fix_index (K,) int: the IMU boundary (0..M) of each GNSS fix, the first at 0;
+    lat (rad), h (m) (K,) and v_n (K, 3) m/s ENU: the fixes (the antenna's velocity when
+    lever_arm_b (3,) m, from the IMU to the antenna in b, is given).
+
+    C = C_b0^n0 solves beta(t_k) = C alpha(t_k) in the least-squares sense (SVD, Wahba):
+    alpha(t) = int_0^t C_b^b0 f dtau (+ C_b^b0(t)(w(t) x l) - w(0) x l with a lever arm),
+    beta(t) = C_n(t)^n0 v^n(t) - v^n(0) + int_0^t C_n^n0 (w_ie^n x v^n - g^n) dtau,
+    C_n^n0 from the fixes' w_in (trapezoid rule between fixes). Returns C_b^n at the last
+    fix (3, 3) and the fit's RMS residual (m/s).
+    """
+    from models.attitude import rotvec_to_dcm
+    from models.earth import earth_rate_n, gravity_n, transport_rate_n
+
+    fix_index = np.rint(np.asarray(fix_index, dtype=float)).astype(int)
+    if fix_index.size < 3 or fix_index[0] != 0 or np.any(np.diff(fix_index) <= 0):
+        raise ValueError("need >= 3 fixes at increasing IMU boundaries, the first at 0")
+    phi, dv_b = compensate(dtheta[None], dv[None])
+    q = quat_cumprod(np.concatenate([[[1.0, 0.0, 0.0, 0.0]], rotvec_to_quat(phi[0])]))
+    C_b_b0 = quat_to_dcm(q)                                          # (M+1, 3, 3)
+    alpha_all = np.concatenate([np.zeros((1, 3)), np.cumsum(
+        np.einsum("kij,kj->ki", C_b_b0[:-1], dv_b[0]), axis=0)])
+    alpha = alpha_all[fix_index]
+    if lever_arm_b is not None:
+        rate = dtheta / dt
+        w = rate[np.maximum(fix_index - 1, 0)]                      # interval ending at t_k
+        w[0] = rate[0]
+        lever = np.cross(w, lever_arm_b)
+        alpha = alpha + np.einsum("kij,kj->ki", C_b_b0[fix_index], lever) - lever[0]
+    # C_n(t)^n0 and the integral, fix to fix.
+    t = fix_index * dt
+    w_ie = earth_rate_n(lat)
+    w_in = w_ie + transport_rate_n(lat, h, v_n)
+    integrand_n = np.cross(w_ie, v_n) - gravity_n(lat, h)
+    K = fix_index.size
+    C_n_n0 = np.empty((K, 3, 3))
+    C_n_n0[0] = np.eye(3)
+    integral = np.zeros((K, 3))
+    for k in range(1, K):
+        T = t[k] - t[k - 1]
+        C_n_n0[k] = C_n_n0[k - 1] @ rotvec_to_dcm(0.5 * T * (w_in[k - 1] + w_in[k]))
+        integral[k] = integral[k - 1] + 0.5 * T * (C_n_n0[k - 1] @ integrand_n[k - 1]
+                                                   + C_n_n0[k] @ integrand_n[k])
+    beta = np.einsum("kij,kj->ki", C_n_n0, v_n) - v_n[0] + integral
+    U, _, Vt = np.linalg.svd(beta.T @ alpha)
+    d = np.sign(np.linalg.det(U @ Vt))
+    C = U @ np.diag([1.0, 1.0, d]) @ Vt                               # C_b0^n0
+    residual = float(np.sqrt(np.mean(np.sum((beta - alpha @ C.T) ** 2, axis=-1))))
+    return C_n_n0[-1].T @ C @ C_b_b0[fix_index[-1]], residual

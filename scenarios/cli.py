@@ -126,6 +126,10 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--outage", type=_float_option("--outage", allow_zero=True), metavar="S",
                        help="paper001: a GPS outage of S seconds in the middle of the "
                        "motion phase (default: none)")
+    bench.add_argument("--coarse", choices=["static", "moving"],
+                       help="paper001: the coarse alignment: static analytic in the first "
+                       "60 s, or GPS-velocity-aided over the first 60 s of motion (the "
+                       "filter then starts in motion; default: static)")
     bench.add_argument("--heading-point", choices=["antenna", "rear-axle"],
                        help="paper001: the body point whose velocity gives the GPS heading: "
                        "the antenna (the paper) or the rear axle (no kinematic sideslip; "
@@ -209,10 +213,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if args.paper != "paper001":
             raise ConfigError(f"--outage exists for paper001 only, not {args.paper}")
         settings["outage"] = args.outage
-    if args.heading_point is not None:
-        if args.paper != "paper001":
-            raise ConfigError(f"--heading-point exists for paper001 only, not {args.paper}")
-        settings["heading_point"] = args.heading_point
+    for option in ("heading_point", "coarse"):
+        value = getattr(args, option)
+        if value is not None:
+            if args.paper != "paper001":
+                raise ConfigError(f"--{option.replace('_', '-')} exists for paper001 only, "
+                                  f"not {args.paper}")
+            settings[option] = value
     exp = experiment(args.paper, args.setup, **settings)
     filters = (list(exp.default_filters) if args.filters is None
                else [f.strip() for f in args.filters.split(",") if f.strip()])

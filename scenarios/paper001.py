@@ -18,13 +18,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.inertial_frame import static_coarse_alignment
-from estimators.loose_gps import (ACCEL, GYRO, LAYOUT, PHI, POSITION, VELOCITY, GpsInsInputs,
-                                  LooselyCoupledModel, LooseTuning, heading_cw)
+from estimators.inertial_frame import static_coarse_alignment, velocity_aided_alignment
+from estimators.loose_gps import (ACCEL, GYRO, PHI, POSITION, RATE_WINDOW, VELOCITY,
+                                  GpsInsInputs, LooselyCoupledModel, LooseTuning, heading_cw)
 from estimators.metrics import misalignment, nees
 from estimators.model import stack_episodes, wrap_angle
 from models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm
-from models.earth import C_n_e, geodetic_to_ecef, radii
+from models.earth import C_n_e, earth_rate_n, geodetic_to_ecef, radii
 from models.units import arcmin, deg
 from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode)
 from scenarios.config import ConfigError, ScenarioConfig
@@ -33,6 +33,7 @@ from sensors.imu import ImuTuning
 
 START = "coarse"
 SCHEMES = ("lckf", "rakf", "swakf")
+COARSE = ("static", "moving")
 HEADING_POINTS = ("antenna", "rear-axle")
 AXES_ENU = ("E", "N", "U")
 
@@ -41,9 +42,12 @@ AXES_ENU = ("E", "N", "U")
 class Paper001Experiment(Experiment):
     """Settings (SPEC 4.3; assumed values marked). Times in s, speeds in m/s.
 
-    coarse_duration: static analytic coarse alignment over [0, coarse_duration] (must lie
-    in the stationary phase; 60 s *assumed*); fine_duration: the filter's run after it
-    (None: to the end of the scenario); filter_step: filter epoch = GPS fix interval;
+    coarse: "static", the analytic coarse alignment over [0, coarse_duration] (in the
+    stationary phase), or "moving", the GPS-velocity-aided alignment in motion
+    (ALGORITHMS 1.2, lever arm compensated) over [coarse_start, coarse_start +
+    coarse_duration] (coarse_start None: when the car starts to move); coarse_duration:
+    60 s *assumed*; fine_duration: the filter's run after the coarse stage (None: to the
+    end of the scenario); filter_step: filter epoch = GPS fix interval;
     attitude_sigma_deg: the filter's P0 misalignment E, N, U (*assumed*: level 0.1 deg,
     heading 10 deg, above the coarse stage's few degrees); accel_noise_density: the
     filter's accelerometer white noise, m/s/sqrt(s) (the paper prints none; *assumed*
@@ -61,6 +65,8 @@ class Paper001Experiment(Experiment):
     """
 
     scenario: str = "figure8-gps"
+    coarse: str = "static"
+    coarse_start: float | None = None
     coarse_duration: float = 60.0
     fine_duration: float | None = None
     filter_step: float = 1.0
@@ -88,10 +94,18 @@ class Paper001Experiment(Experiment):
 
     @property
     def duration(self) -> float:
+        from scenarios.config import load_scenario
         if self.fine_duration is None:
-            from scenarios.config import load_scenario
             return load_scenario(self.scenario).duration
-        return self.coarse_duration + self.fine_duration
+        return self.coarse_window(load_scenario(self.scenario))[1] + self.fine_duration
+
+    def coarse_window(self, config: ScenarioConfig) -> tuple[float, float]:
+        """(start, end) s of the coarse alignment; the filter starts at its end."""
+        start = 0.0
+        if self.coarse == "moving":
+            start = (config.motion.start_time if self.coarse_start is None
+                     else self.coarse_start)
+        return start, start + self.coarse_duration
 
     def scenario_config(self) -> ScenarioConfig:
         """The scenario with this experiment's duration and its GPS outage, checked."""
@@ -118,9 +132,20 @@ class Paper001Experiment(Experiment):
         if config.motion.has_gimbal:
             raise ConfigError("paper001 needs a strapdown IMU: motion.gimbal_outer_rate_deg_s "
                               "and gimbal_inner_rate_deg_s must be 0")
-        if not 0.0 < self.coarse_duration <= config.motion.start_time:
+        if self.coarse not in COARSE:
+            raise ConfigError(f"coarse = {self.coarse!r}; valid: " + ", ".join(COARSE))
+        if self.coarse == "static" and not 0.0 < self.coarse_duration <= \
+                config.motion.start_time:
             raise ConfigError(f"coarse_duration = {self.coarse_duration:g} s must be in "
                               f"(0, {config.motion.start_time:g}] s (the stationary phase)")
+        if self.coarse == "moving":
+            start, end = self.coarse_window(config)
+            if not (self.coarse_duration >= 3.0 / config.gps.rate
+                    and config.motion.start_time <= start and end < config.duration):
+                raise ConfigError(f"the moving coarse alignment's window [{start:g}, "
+                                  f"{end:g}] s must lie in the motion phase "
+                                  f"[{config.motion.start_time:g}, {config.duration:g}) s "
+                                  "and hold >= 3 GPS fixes")
         if self.fine_duration is not None and not self.fine_duration >= self.filter_step:
             raise ConfigError(f"fine_duration = {self.fine_duration:g} s must be >= "
                               f"filter_step = {self.filter_step:g} s")
@@ -139,10 +164,11 @@ class Paper001Experiment(Experiment):
             raise ConfigError(f"--outage {self.outage:g} s must be >= 0")
         if self.outage > 0.0:
             start, end = self.outage_window(config)
-            if not (self.coarse_duration < start and end < config.duration):
+            first = self.coarse_window(config)[1]
+            if not (first < start and end < config.duration):
                 raise ConfigError(f"--outage {self.outage:g} s: the window [{start:g}, "
                                   f"{end:g}] s must lie inside the filter's run "
-                                  f"({self.coarse_duration:g}, {config.duration:g}) s")
+                                  f"({first:g}, {config.duration:g}) s")
 
     def tuning(self, config: ScenarioConfig, heading: bool = True) -> LooseTuning:
         imu = ImuTuning.from_spec(config.imu)
@@ -238,35 +264,44 @@ class Paper001Episode(PreparedEpisode):
 
 def prepare_episode(experiment: Paper001Experiment, seed: int,
                     config: ScenarioConfig | None = None) -> Paper001Episode:
-    """Simulate the run, align coarsely over the stationary start, cut the data into the
-    filter's epochs."""
+    """Simulate the run, align coarsely (still or moving), cut the data into the filter's
+    epochs."""
     config = config or experiment.scenario_config()
     episode = simulate(config, seed=seed)
     truth, dt = episode.truth, config.imu_interval
-    n_coarse = int(round(experiment.coarse_duration / dt))
-    f_b = episode.dv[:n_coarse].sum(0) / (n_coarse * dt)
-    omega_b = episode.dtheta[:n_coarse].sum(0) / (n_coarse * dt)
+    gps = episode.extra
+    motion = config.motion
+    lever_arm_b = np.subtract(motion.gps_antenna_b, motion.imu_offset_b)
+    start, end = experiment.coarse_window(config)
+    n_start, n_coarse = int(round(start / dt)), int(round(end / dt))
     C_b_n_true = quat_to_dcm(truth.q_b_n)
-    C_coarse = static_coarse_alignment(f_b, omega_b, float(truth.lat[n_coarse]))
+    if experiment.coarse == "static":
+        f_b = episode.dv[:n_coarse].sum(0) / (n_coarse * dt)
+        omega_b = episode.dtheta[:n_coarse].sum(0) / (n_coarse * dt)
+        C_coarse = static_coarse_alignment(f_b, omega_b, float(truth.lat[n_coarse]))
+    else:
+        fixes = np.flatnonzero((gps["gps_t"] >= start - 1e-9) & (gps["gps_t"] <= end + 1e-9)
+                               & gps["gps_valid"])
+        C_coarse, _ = velocity_aided_alignment(
+            episode.dtheta[n_start:n_coarse], episode.dv[n_start:n_coarse], dt,
+            (gps["gps_t"][fixes] - start) / dt, gps["gps_lat"][fixes], gps["gps_h"][fixes],
+            gps["gps_v_n"][fixes], lever_arm_b)
     per_epoch = int(round(experiment.filter_step / dt))
     epochs = (truth.t.size - 1 - n_coarse) // per_epoch
     idx = n_coarse + per_epoch * np.arange(epochs + 1)
     t = truth.t[idx]
     dtheta = episode.dtheta[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3)
     dv = episode.dv[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3)
-    gps = episode.extra
     g = np.rint((t - gps["gps_t"][0]) * config.gps.rate).astype(int)
     if np.any(np.abs(gps["gps_t"][g] - t) > 1e-6):
         raise ConfigError("paper001: the filter epochs must fall on GPS fixes (latency 0)")
     heading_sigma = np.where(gps["gps_heading_valid"][g], gps["gps_heading_sigma"][g], np.nan)
-    motion = config.motion
     return Paper001Episode(
         seed=seed, t=t, imu_dt=dt, dtheta=dtheta, dv=dv, gps_lat=gps["gps_lat"][g],
         gps_lon=gps["gps_lon"][g], gps_h=gps["gps_h"][g], gps_v_n=gps["gps_v_n"][g],
         gps_heading_sigma=heading_sigma, true_lat=truth.lat[idx], true_lon=truth.lon[idx],
         true_h=truth.h[idx], true_v_n=truth.v_n[idx],
-        lever_arm_b=np.subtract(motion.gps_antenna_b, motion.imu_offset_b),
-        coarse_error=misalignment(C_b_n_true[n_coarse], C_coarse),
+        lever_arm_b=lever_arm_b, coarse_error=misalignment(C_b_n_true[n_coarse], C_coarse),
         C_s_n_true=quat_to_dcm(truth.q_s_n[idx]), C_b_n_true=C_b_n_true[idx],
         C_s_b=np.broadcast_to(np.eye(3), (idx.size, 3, 3)).copy(),
         gyro_bias=episode.imu_realization.gyro.bias,
@@ -277,19 +312,22 @@ def prepare_episode(experiment: Paper001Experiment, seed: int,
 def model_inputs(episodes: list[Paper001Episode], start_error: np.ndarray) -> GpsInsInputs:
     """The model's inputs for a batch; each INS starts at the first epoch from the true
     attitude turned by its start error (phi E, N, U, rad: C = exp(-[phi x]) C_true),
-    from the GPS fix less the lever arm, and at the GPS velocity."""
+    from the GPS fix less the lever arm, and at the GPS velocity less the lever arm's
+    (C_b^n (w_nb x l), w_nb from the first 0.1 s of gyro increments)."""
     inputs = []
     for e, phi in zip(episodes, start_error):
         C_b_n0 = rotvec_to_dcm(-phi) @ e.C_s_n_true[0]
         lat, lon, h = e.gps_lat[0], e.gps_lon[0], e.gps_h[0]
         R_M, R_N = radii(lat)
         l_n = C_b_n0 @ e.lever_arm_b
+        samples = max(1, int(round(RATE_WINDOW / e.imu_dt)))
+        w_b = e.dtheta[0, :samples].mean(0) / e.imu_dt - C_b_n0.T @ earth_rate_n(lat)
         inputs.append(GpsInsInputs(
             t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
             gps_lat=e.gps_lat[None], gps_lon=e.gps_lon[None], gps_h=e.gps_h[None],
             gps_v_n=e.gps_v_n[None], gps_heading_sigma=e.gps_heading_sigma[None],
             lever_arm_b=e.lever_arm_b[None], q_b_n0=dcm_to_quat(C_b_n0)[None],
-            v_n0=e.gps_v_n[0][None], lat0=np.array([lat - l_n[1] / (R_M + h)]),
+            v_n0=(e.gps_v_n[0] - C_b_n0 @ np.cross(w_b, e.lever_arm_b))[None], lat0=np.array([lat - l_n[1] / (R_M + h)]),
             lon0=np.array([lon - l_n[0] / ((R_N + h) * np.cos(lat))]),
             h0=np.array([h - l_n[2]])))
     return stack_episodes(inputs, shared=("t", "imu_dt"))
