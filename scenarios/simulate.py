@@ -153,7 +153,7 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
 def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     """A dynamic world (the car, the ship in waves; both at 500 Hz): MuJoCo's discrete
     steps, the exact discrete IMU, and the world's odometer, GPS and encoders."""
-    from models.attitude import euler_to_quat, quat_mul
+    from models.attitude import euler_to_quat, quat_mul, quat_to_dcm
     from models.truth import gravity_t, plane_truth
     from models.world import SmoothRun
     from sensors import gps as gps_sensor
@@ -178,11 +178,20 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     gimbal = motion.gimbal_angles(run.t)
     # C_s_b = Rz(outer) Rx(inner): the PSINS Euler DCM with pitch = inner, yaw = outer.
     q_s_b = euler_to_quat(np.stack([gimbal[:, 1], np.zeros(run.t.size), gimbal[:, 0]], -1))
-    q_s_t = quat_mul(run.quat, q_s_b)
     k = int(round(1.0 / (config.imu_rate * run.dt)))
     m = config.imu_samples
     dtheta = dtheta[: m * k].reshape(m, k, 3).sum(1)
     dv = dv[: m * k].reshape(m, k, 3).sum(1)
+    if config.odometer is not None:
+        # The IMU case sits on the chassis (on the gimbal, if any) turned by the odometer's
+        # mounting angles: C_s^b = C_gimbal Rz(heading) Rx(pitch), so the error a filter
+        # must absorb is in the data. Constant: the increments turn with it exactly.
+        odo = config.odometer
+        q_mount = euler_to_quat(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading]))
+        q_s_b = quat_mul(q_s_b, q_mount)
+        C_mount = quat_to_dcm(q_mount)
+        dtheta, dv = dtheta @ C_mount, dv @ C_mount
+    q_s_t = quat_mul(run.quat, q_s_b)
     idx = np.arange(m + 1) * k
     truth = plane_truth(plane, run.t[idx], site[idx], v_site[idx], run.quat[idx],
                         q_s_t[idx], gimbal[idx])

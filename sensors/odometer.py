@@ -13,8 +13,10 @@ class OdometerSpec:
     """pulses_per_rev: encoder resolution; nominal_radius: the wheel radius the odometer
     assumes, m; scale_error: dK_D, the odometer's relative scale-factor error (fixed);
     scale_error_sigma: 1 sigma of dK_D drawn per episode instead (0: use scale_error);
-    mounting_pitch, mounting_heading: odometer frame to IMU, rad (for the models that
-    resolve the odometer velocity in the IMU frame; the distance is unaffected)."""
+    mounting_pitch, mounting_heading: the IMU case's mounting on the chassis, rad: the
+    simulation turns the IMU axes by C_s^b = Rz(heading) Rx(pitch) from the chassis (the
+    odometer's) axes, so the odometer velocity in the IMU frame is
+    C_b^s [0, v, 0] (the distance is unaffected)."""
 
     pulses_per_rev: int = 1024
     nominal_radius: float = 0.33
@@ -29,6 +31,11 @@ class OdometerSpec:
                              f"{self.pulses_per_rev}")
         if not self.nominal_radius > 0.0:
             raise ValueError(f"odometer.nominal_radius must be > 0 m, got {self.nominal_radius}")
+        for name in ("mounting_pitch", "mounting_heading"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and abs(value) <= math.radians(10.0)):
+                raise ValueError(f"odometer.{name} must be within +-10 deg, got "
+                                 f"{math.degrees(value):g} deg")
         if not abs(self.scale_error) < 0.5:
             raise ValueError(f"odometer.scale_error must be in (-0.5, 0.5), got "
                              f"{self.scale_error}")
