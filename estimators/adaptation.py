@@ -155,20 +155,25 @@ class InnovationFading(AdaptationPolicy):
 class SingleFadingFactor(InnovationFading):
     """SAKF (Xia, Rao, Ying & Shen 1994; same form as Zhou & Frank's STF):
     P_pred = lambda Phi P Phi^T + Q, lambda = max(1, tr N / tr M),
-    N = C_k - H Q H^T - beta R, M = H Phi P Phi^T H^T."""
+    N = C_k - H Q H^T - beta R, M = H Phi P Phi^T H^T. derivative_free: the strong
+    tracking of a derivative-free filter (ALGORITHMS 4.3, 000 eq. 58) takes
+    M = P_zz0 - R - H~ Q H~^T from the rule's predicted measurement covariance, which a
+    nonlinear measurement makes larger than the statistically linearised H~ P H~^T (the
+    two are equal for a linear one)."""
 
     n_factors = 1
     name = "single-fading"
 
     def __init__(self, rho: float = 0.95, beta: float = 1.0, floor: float = 1.0,
-                 cap: float = np.inf) -> None:
+                 cap: float = np.inf, derivative_free: bool = False) -> None:
         super().__init__(rho, floor, cap)
-        self.beta = beta
+        self.beta, self.derivative_free = beta, derivative_free
 
     def adapt(self, ctx):
         C = self.innovation_covariance(ctx.innovation, ctx.valid)
-        N = C - _sandwich(ctx.H, ctx.Q) - self.beta * ctx.R
-        M = _sandwich(ctx.H, ctx.PhiPPhi)
+        HQH = _sandwich(ctx.H, ctx.Q)
+        N = C - HQH - self.beta * ctx.R
+        M = (ctx.S - ctx.R - HQH) if self.derivative_free else _sandwich(ctx.H, ctx.PhiPPhi)
         lam = self._bound(np.trace(N, axis1=-2, axis2=-1) / np.trace(M, axis1=-2, axis2=-1))
         lam = lam[:, None]
         return Adjustment(lam[:, :, None] * ctx.PhiPPhi + ctx.Q, None, lam)

@@ -18,7 +18,8 @@ from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                    SelectiveWeights, SingleFadingFactor)
 from estimators.model import Observation, Transition, wrap_angle
 from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
-                              LinearizationRule, SparseGridGaussHermiteRule, UnscentedRule)
+                              LinearizationRule, ReducedGaussHermiteRule,
+                              SparseGridGaussHermiteRule, UnscentedRule)
 
 
 def _cholesky_ok(A: np.ndarray) -> np.ndarray:
@@ -245,6 +246,10 @@ class FilterEntry:
     model: str = ""
 
 
+def _strong_tracking(**options):
+    return SingleFadingFactor(derivative_free=True, **options)
+
+
 def _local_level(policy):
     return lambda **options: policy(axes="local-level", **options)
 
@@ -282,6 +287,12 @@ FILTERS: dict[str, FilterEntry] = {
     "swakf": FilterEntry(LinearizationRule, SelectiveWeights,
                          "selective-weight adaptive KF with the GPS heading, m = 2.5 "
                          "(001 eqs. 14-21)"),
+    "rdghkf": FilterEntry(lambda: ReducedGaussHermiteRule(7), NoAdaptation,
+                          "reduced-dimension Gauss-Hermite KF, 7 points on the model's "
+                          "nonlinear states (000 eqs. 40-57)"),
+    "sgkf": FilterEntry(lambda: ReducedGaussHermiteRule(7), _strong_tracking,
+                        "reduced-dimension GH with the strong-tracking fading factor "
+                        "(000's SGKF; rho 0.95, beta 1)", True),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
