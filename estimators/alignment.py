@@ -37,6 +37,10 @@ class FineResult:
     repairs: np.ndarray
     seconds_per_epoch: float
     series: dict[str, np.ndarray] = field(default_factory=dict)
+    nis: np.ndarray | None = None
+    """(B, K) normalised innovation squared e^T S^-1 e of each update (NaN: none), the
+    innovation test's statistic (chi-square with ``nis_dof`` degrees of freedom)."""
+    nis_dof: np.ndarray | None = None
 
 
 class AlignmentRun:
@@ -54,6 +58,8 @@ class AlignmentRun:
         self.x = np.zeros((B, K + 1, n))
         self.x[:, 0] = filt.x
         self.factors: np.ndarray | None = None
+        self.nis = np.full((B, K), np.nan)
+        self.nis_dof = np.zeros((B, K), int)
         self.k = 0
         self.compute_seconds = 0.0
         self._record()
@@ -90,6 +96,14 @@ class AlignmentRun:
             self.factors = grown
         self.factors[:, k] = np.nan
         self.factors[:, k, :width] = filt.factors
+        if filt.innovation is not None:
+            live = filt.live
+            e = np.where(live[:, None], filt.innovation, 0.0)
+            S = np.where(live[:, None, None], filt.S, np.eye(e.shape[-1]))
+            nis = np.einsum("bi,bi->b", e, np.linalg.solve(S, e[..., None])[..., 0])
+            dof = filt.valid.sum(-1)
+            self.nis[:, k] = np.where((dof > 0) & live, nis, np.nan)
+            self.nis_dof[:, k] = dof
         filt.x, filt.P = model.feedback(filt.x, filt.P, filt.live)
         self.x[:, k + 1] = filt.x
         self.k += 1
@@ -108,7 +122,8 @@ class AlignmentRun:
                           diverged_reason=list(health.reason), repairs=health.repairs.copy(),
                           seconds_per_epoch=self.compute_seconds / max(k, 1),
                           series={name: values[:, : k + 1]
-                                  for name, values in self.model.series().items()})
+                                  for name, values in self.model.series().items()},
+                          nis=self.nis[:, :k].copy(), nis_dof=self.nis_dof[:, :k].copy())
 
 
 def run_alignment(filt: GaussianFilter, model: FilterModel) -> FineResult:

@@ -280,7 +280,8 @@ def concatenate_results(parts: list[FineResult]) -> FineResult:
                       repairs=cat("repairs"),
                       seconds_per_epoch=sum(p.seconds_per_epoch for p in parts),
                       series={name: np.concatenate([p.series[name] for p in parts])
-                              for name in parts[0].series})
+                              for name in parts[0].series},
+                      nis=cat("nis"), nis_dof=cat("nis_dof"))
 
 
 def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:

@@ -70,7 +70,7 @@ def _bench_epilog() -> str:
             + "\nscenarios with a pipeline: "
             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
             + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
-            "car for paper001, ship-prescribed or ship-waves for paper003, static-platform "
+            "car for paper000 and paper001, ship-prescribed or ship-waves for paper003, static-platform "
             "for paper002")
 
 
@@ -107,25 +107,30 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                            formatter_class=argparse.RawDescriptionHelpFormatter)
     bench.add_argument("paper", choices=list(PAPERS), help="which paper's experiment")
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
-                       help="Monte Carlo episodes (default: 50 for paper001 and paper003, "
-                       "100 for paper002)")
+                       help="Monte Carlo episodes (default: 100 for paper002, 50 for the "
+                       "others)")
     bench.add_argument("--setup", choices=["default", "paper"], default="default",
                        help="paper003: 'paper' reproduces the paper's setup (biases fixed "
                        "in the hull frame, calm-sea R, fading factors on R; README; "
                        "default: default)")
     bench.add_argument("--scenario", metavar="NAME|FILE.toml",
                        help="scenario to run the paper's experiment on (default: the "
-                       "paper's: figure8-gps for paper001, static-large-azimuth for "
+                       "paper's: ring-road-odometer for paper000, figure8-gps for "
+                       "paper001, static-large-azimuth for "
                        "paper002, ship-sway-rotary for paper003); a .toml may carry a "
                        "[filter] table")
     bench.add_argument("--seed", type=_seed, default=0, metavar="S",
                        help="campaign seed (default: 0)")
     bench.add_argument("--filters", help="comma-separated filter names (default: "
-                       "lckf,rakf,swakf for paper001; ekf,ukf,sghkf-2,sghkf-4 for "
+                       "sgkf,rdghkf,ckf,ekf for paper000; lckf,rakf,swakf for paper001; "
+                       "ekf,ukf,sghkf-2,sghkf-4 for "
                        "paper002; kf,sakf,makf,imakf for paper003)")
     bench.add_argument("--outage", type=_float_option("--outage", allow_zero=True), metavar="S",
                        help="paper001: a GPS outage of S seconds in the middle of the "
                        "motion phase (default: none)")
+    bench.add_argument("--disturbance", choices=["none", "slip", "all"],
+                       help="paper000: odometer slip bursts (slip), and a rough road as "
+                       "well (all) (default: none)")
     bench.add_argument("--coarse", choices=["static", "moving"],
                        help="paper001: the coarse alignment: static analytic in the first "
                        "60 s, or GPS-velocity-aided over the first 60 s of motion (the "
@@ -177,7 +182,7 @@ def _positive_int(field: str):
     return parse
 
 
-DEFAULT_EPISODES = {"paper001": 50, "paper002": 100, "paper003": 50}
+DEFAULT_EPISODES = {"paper000": 50, "paper001": 50, "paper002": 100, "paper003": 50}
 
 
 def _check_writable(path_text: str, option: str) -> None:
@@ -213,11 +218,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if args.paper != "paper001":
             raise ConfigError(f"--outage exists for paper001 only, not {args.paper}")
         settings["outage"] = args.outage
-    for option in ("heading_point", "coarse"):
+    for option, paper in (("heading_point", "paper001"), ("coarse", "paper001"),
+                          ("disturbance", "paper000")):
         value = getattr(args, option)
         if value is not None:
-            if args.paper != "paper001":
-                raise ConfigError(f"--{option.replace('_', '-')} exists for paper001 only, "
+            if args.paper != paper:
+                raise ConfigError(f"--{option.replace('_', '-')} exists for {paper} only, "
                                   f"not {args.paper}")
             settings[option] = value
     exp = experiment(args.paper, args.setup, **settings)

@@ -54,7 +54,7 @@ UNITS = {
     # GPS (velocity_sigma and heading_min_speed in m/s, no suffix)
     "rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
     "velocity_sigma": "", "heading_min_speed": "", "latency": "_s", "outages": "_s",
-    "outliers": "",
+    "outliers": "", "slips": "",
     # odometer
     "pulses_per_rev": "", "nominal_radius": "_m", "scale_error": "",
     "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
@@ -69,9 +69,9 @@ VECTORS = ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b",
 """Parameters of 3 values (E, N, U or R, F, U)."""
 STRINGS = ("preset", "bias_frame", "track")
 INTEGERS = ("components", "pulses_per_rev")
-FREE = ("outages", "outliers", "initial_covariance")
-"""Checked by their users: (start, end) windows; (time s, east m, north m, up m) rows; a
-matrix."""
+FREE = ("outages", "outliers", "slips", "initial_covariance")
+"""Checked by their users: (start, end) windows; (time s, east m, north m, up m) and
+(time s, duration s, extra m) rows; a matrix."""
 
 SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter")
 TOP_KEYS = ("name", "paper", "world")
@@ -222,6 +222,8 @@ class ScenarioConfig:
                               f" of IMU intervals of {self.imu_interval:g} s")
         for when, *_ in (self.gps.outliers if self.gps is not None else ()):
             _check_range("gps.outliers time", when, 0.0, self.duration, "s")
+        for when, duration, _ in (self.odometer.slips if self.odometer is not None else ()):
+            _check_range("odometer.slips time", when, 0.0, self.duration - duration, "s")
         if self.world in PHYSICS_RATE:
             rate = PHYSICS_RATE[self.world]
             ratio = rate / self.imu_rate

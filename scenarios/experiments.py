@@ -29,6 +29,9 @@ def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
         cls = Paper003Experiment
         if setup == "paper":
             settings = {**PAPER_SETUP, **settings}
+    elif paper == "paper000":
+        from scenarios.paper000 import Paper000Experiment
+        cls = Paper000Experiment
     elif paper == "paper001":
         from scenarios.paper001 import Paper001Experiment
         cls = Paper001Experiment

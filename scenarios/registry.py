@@ -7,10 +7,10 @@ from pathlib import Path
 DATA_DIR = Path(__file__).parent / "data"
 """The shipped scenario files."""
 
-PAPERS = ("paper001", "paper002", "paper003")
+PAPERS = ("paper000", "paper001", "paper002", "paper003")
 """Papers with a campaign (``aligngym bench``)."""
 
-SCENARIO_PAPER = {"figure8-gps": "paper001", "ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003",
+SCENARIO_PAPER = {"ring-road-odometer": "paper000", "figure8-gps": "paper001", "ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003",
                   "static-large-azimuth": "paper002"}
 """Shipped scenarios with an alignment pipeline (the env is registered for these)."""
 

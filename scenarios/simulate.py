@@ -202,7 +202,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
         odo = config.odometer
         scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
         extra.update({"odo_t": truth.t, "odo_distance": odo.distance(
-            run.wheel_angles[idx][:, 2:4], scale), "odo_scale_error": np.array(scale),
+            run.wheel_angles[idx][:, 2:4], scale, truth.t), "odo_scale_error": np.array(scale),
             "odo_mounting": np.array([odo.mounting_pitch, odo.mounting_heading])})
     if config.gps is not None:
         spec = config.gps

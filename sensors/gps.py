@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sensors import number_rows
+
 
 @dataclass(frozen=True)
 class GpsSpec:
@@ -26,9 +28,9 @@ class GpsSpec:
     outliers: tuple[tuple[float, float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "outages", _rows(self.outages, 2, "outages",
+        object.__setattr__(self, "outages", number_rows(self.outages, 2, "gps.outages",
                                                      "(start_s, end_s)"))
-        object.__setattr__(self, "outliers", _rows(self.outliers, 4, "outliers",
+        object.__setattr__(self, "outliers", number_rows(self.outliers, 4, "gps.outliers",
                                                       "(time_s, east_m, north_m, up_m)"))
         if not 0.0 < self.rate <= 100.0:
             raise ValueError(f"gps.rate = {self.rate} Hz is out of range (0, 100]")
@@ -40,18 +42,6 @@ class GpsSpec:
         for start, end in self.outages:
             if not end > start:
                 raise ValueError(f"gps.outages: window ({start}, {end}) must have end > start")
-
-
-def _rows(value, width: int, name: str, shape: str) -> tuple[tuple[float, ...], ...]:
-    """A list of rows of ``width`` numbers as a tuple of float tuples; ValueError naming
-    gps.<name> otherwise."""
-    try:
-        rows = tuple(tuple(float(v) for v in row) for row in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"gps.{name} must be a list of {shape} rows of numbers") from None
-    if any(len(row) != width or not all(math.isfinite(v) for v in row) for row in rows):
-        raise ValueError(f"gps.{name} must be a list of {shape} rows of finite numbers")
-    return rows
 
 
 def heading_from_velocity(v_n: np.ndarray, velocity_sigma: float

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sensors import number_rows
+
 
 @dataclass(frozen=True)
 class OdometerSpec:
@@ -16,7 +18,9 @@ class OdometerSpec:
     mounting_pitch, mounting_heading: the IMU case's mounting on the chassis, rad: the
     simulation turns the IMU axes by C_s^b = Rz(heading) Rx(pitch) from the chassis (the
     odometer's) axes, so the odometer velocity in the IMU frame is
-    C_b^s [0, v, 0] (the distance is unaffected)."""
+    C_b^s [0, v, 0] (the distance is unaffected); slips: faults (time s, duration s,
+    extra m): a driven wheel spins, the odometer counting ``extra`` metres more than the
+    car travels, spread evenly over the burst (and kept after it)."""
 
     pulses_per_rev: int = 1024
     nominal_radius: float = 0.33
@@ -24,8 +28,13 @@ class OdometerSpec:
     scale_error_sigma: float = 0.0
     mounting_pitch: float = math.radians(0.5)
     mounting_heading: float = math.radians(0.5)
+    slips: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "slips", number_rows(self.slips, 3, "odometer.slips",
+                                                      "(time_s, duration_s, extra_m)"))
+        if any(duration <= 0.0 for _, duration, _ in self.slips):
+            raise ValueError("odometer.slips: each burst's duration_s must be > 0")
         if not (isinstance(self.pulses_per_rev, int) and self.pulses_per_rev >= 1):
             raise ValueError(f"odometer.pulses_per_rev must be an integer >= 1, got "
                              f"{self.pulses_per_rev}")
@@ -46,11 +55,15 @@ class OdometerSpec:
             return float(self.scale_error_sigma * rng.standard_normal())
         return self.scale_error
 
-    def distance(self, wheel_angles: np.ndarray, scale_error: float) -> np.ndarray:
-        """Cumulative distance (N,) m from the driven wheels' unwrapped angles (N, k) rad:
-        the mean wheel angle counted in whole pulses, times the nominal circumference,
-        times (1 + dK_D)."""
+    def distance(self, wheel_angles: np.ndarray, scale_error: float,
+                 t: np.ndarray | None = None) -> np.ndarray:
+        """Cumulative distance (N,) m from the driven wheels' unwrapped angles (N, k) rad at
+        times t (N,) s: the mean wheel angle (with the slip bursts' extra spin) counted in
+        whole pulses, times the nominal circumference, times (1 + dK_D)."""
         angle = np.mean(wheel_angles, axis=1) - np.mean(wheel_angles[0])
+        for start, duration, extra in (self.slips if t is not None else ()):
+            angle = angle + extra / self.nominal_radius * np.clip((t - start) / duration,
+                                                                   0.0, 1.0)
         pulses = np.floor(angle / (2 * math.pi) * self.pulses_per_rev)
         return pulses / self.pulses_per_rev * 2 * math.pi * self.nominal_radius * (
             1.0 + scale_error)

@@ -68,3 +68,114 @@ def test_odometer_aided_alignment_while_driving(ring):
     assert errors["lever"][2] < 0.5 * deg
     assert errors["none"][2] > 2.0 * deg
     assert residuals["none"] > 5 * residuals["lever"]
+
+
+# --- the model against the strapdown ---------------------------------------------------------
+def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = True):
+    """The 16/18-state model on the ideal ring, its INS started from the truth turned by
+    the Euler error phi0 (rad), the true mounting given as nominal."""
+    from estimators.euler_large import C_p_n
+    from estimators.odometer_large import (OdometerInputs, OdometerLargeHeadingModel,
+                                           OdometerTuning)
+    from models.attitude import dcm_to_quat
+    config, tr, dt = ring.config, ring.truth, ring.config.imu_interval
+    odo, motion = config.odometer, config.motion
+    C_m_b = euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
+    lever = C_m_b @ np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
+    i0, S = int(round(start / dt)), int(round(1.0 / dt))
+    sl = slice(i0, i0 + seconds * S)
+    C0 = C_p_n(np.asarray(phi0)).T @ quat_to_dcm(tr.q_s_n[i0])
+    inputs = OdometerInputs(
+        t=np.arange(seconds + 1.0), imu_dt=dt, dtheta=ring.dtheta[sl].reshape(1, seconds, S, 3),
+        dv=ring.dv[sl].reshape(1, seconds, S, 3),
+        distance=np.diff(ring.extra["odo_distance"])[sl].reshape(1, seconds, S),
+        C_m_b=C_m_b[None], lever_arm_b=lever[None], q_b_n0=dcm_to_quat(C0)[None],
+        v_n0=tr.v_n[i0][None], lat0=tr.lat[i0:i0 + 1], lon0=tr.lon[i0:i0 + 1],
+        h0=tr.h[i0:i0 + 1])
+    tuning = OdometerTuning(attitude_sigma=(0.01,) * 3, velocity_sigma=0.1, position_sigma=1.0,
+                            gyro_bias_sigma=1e-7, accel_bias_sigma=1e-4, scale_sigma=0.005,
+                            gyro_noise_density=1e-7, accel_noise_density=1e-5,
+                            measurement_sigma=0.02, mounting_sigma=0.01 if mounting else None)
+    return OdometerLargeHeadingModel(inputs, tuning), i0, S
+
+
+@pytest.mark.parametrize("heading_deg", [2.0, 30.0, 80.0])
+def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, heading_deg):
+    """Ideal sensors, the INS open loop from a heading error of up to 80 deg: the model's
+    one-second map carries the true error state to the next epoch (Euler errors to 0.01
+    arcsec, velocity to 1e-4 relative), and the measurement model explains the INS - odometer
+    increment to 1.5 cm (the rear tyres' slip on the ring) while z itself is decimetres
+    to metres; dK_D is the rolling radius's own (the odometer counts 0.17 % long)."""
+    from estimators.euler_large import true_state
+    from scenarios.paper000 import _rear_path
+    model, i0, S = _model_on_truth(ring, 40.0, 15, [0.0, 0.0, heading_deg * deg])
+    tr = ring.truth
+    motion = ring.config.motion
+    lever = np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
+    counted = ring.extra["odo_distance"][i0 + 15 * S] - ring.extra["odo_distance"][i0]
+    odo_scale = _rear_path(tr, model.inputs.lever_arm_b[0], i0, i0 + 15 * S) / counted
+
+    def state(k):
+        i = i0 + k * S
+        s = model.ins.state
+        x = np.zeros(model.n)
+        x[0:3] = true_state(quat_to_dcm(tr.q_s_n[i]), model._C_b_n[0, k])
+        x[3:6] = s.v_n[0] - tr.v_n[i]
+        x[6:9] = [s.lat[0] - tr.lat[i], s.lon[0] - tr.lon[i], s.h[0] - tr.h[i]]
+        x[15] = odo_scale - 1.0
+        return x
+
+    x = state(0)
+    for k in range(15):
+        predicted = model.transition(k).fn(x[None, None])[0, 0]
+        observation = model.observation(k)
+        model._k = k + 1
+        x = state(k + 1)
+        assert np.abs(predicted[0:3] - x[0:3]).max() < 0.01 * arcmin / 60
+        assert np.abs(predicted[3:6] - x[3:6]).max() < 1e-4 * (1 + np.abs(x[3:6]).max())
+        z_model = observation.fn(x[None, None])[0, 0]
+        assert np.abs(observation.z[0] - z_model).max() < 0.015
+    assert np.abs(observation.z[0]).max() > 0.1
+
+
+def test_strong_tracking_factor_is_one_when_innovations_match_their_prediction():
+    """ALGORITHMS 4.3's oracle for the derivative-free form: V_k = P_zz0, beta = 1 ->
+    lambda = 1; twice the predicted variance -> lambda > 1."""
+    from estimators.adaptation import AdaptationContext, SingleFadingFactor
+    P = np.array([[[2.0, 0.3], [0.3, 1.0]]])
+    Q = np.array([[[0.1, 0.0], [0.0, 0.2]]])
+    H = np.array([[[1.0, 0.5]]])
+    R = np.array([[[0.5]]])
+    S = H @ (P + Q) @ np.swapaxes(H, -1, -2) + R + 0.7     # the rule's, with nonlinearity
+    for scale, expect in ((1.0, 1.0), (2.0, None)):
+        policy = SingleFadingFactor(derivative_free=True)
+        policy.reset(1)
+        e = np.sqrt(scale * S[0, 0, 0]) * np.ones((1, 1))
+        ctx = AdaptationContext(innovation=e, valid=np.ones((1, 1), bool), S=S,
+                                P_xz=np.zeros((1, 2, 1)), PhiPPhi=P, Q=Q, R=R, H=H)
+        lam = policy.adapt(ctx).factors[0, 0]
+        if expect is None:
+            assert lam > 1.5
+        else:
+            assert lam == pytest.approx(expect)
+
+
+def test_reduced_gh_is_the_kf_when_nothing_depends_on_the_heading():
+    """A, b, h independent of phi_U: the reduced-dimension rule gives the linear moments
+    exactly (ALGORITHMS 4.2's second oracle)."""
+    from estimators.model import GaussianMap
+    from estimators.rules import ReducedGaussHermiteRule
+    rng = np.random.default_rng(5)
+    F = rng.standard_normal((1, 4, 4))
+    g = rng.standard_normal((1, 4))
+    conditional = lambda zeta: (np.broadcast_to(F[:, None], zeta.shape[:2] + (4, 4)),  # noqa: E731
+                                np.broadcast_to(g[:, None], zeta.shape[:2] + (4,)))
+    fmap = GaussianMap(noise=np.zeros((1, 4, 4)), fn=lambda x: np.einsum(
+        "bij,bpj->bpi", F, x) + g[:, None], conditional=conditional, nonlinear=(2,))
+    A = rng.standard_normal((1, 4, 4))
+    P = A @ np.swapaxes(A, -1, -2) + np.eye(4)
+    m = rng.standard_normal((1, 4))
+    y, Pyy, Pxy = ReducedGaussHermiteRule(7).moments(fmap, m, P)
+    np.testing.assert_allclose(y, np.einsum("bij,bj->bi", F, m) + g, atol=1e-12)
+    np.testing.assert_allclose(Pyy, F @ P @ np.swapaxes(F, -1, -2), atol=1e-10)
+    np.testing.assert_allclose(Pxy, P @ np.swapaxes(F, -1, -2), atol=1e-12)

@@ -1,0 +1,422 @@
+"""Paper 000 end to end: odometer-aided in-motion alignment of a FOG SINS on a car driving
+the ring road (``ring-road-odometer``: 10 min of driving, then a stop and 5 min still).
+
+Each episode: the odometer-aided coarse alignment while driving (ALGORITHMS 1.13, the
+lever arm from the rear axle compensated; the heading comes from the earth's rotation
+only, so it leaves a large heading error and small level errors), then the fine
+alignment from the end of that window to the end of the run with the large-heading model
+of ALGORITHMS 4.1 (``estimators.odometer_large``; with the odometer's residual mounting
+pitch and heading as two more states, since the physics mounts the IMU case with the
+scenario's angles). The paper's protocol: the filter's attitude when the car stops is
+compared with the truth and with the analytic static alignment over the 5 min still
+after the stop (the paper's reference). Filters: ``sgkf`` (000's SGKF: reduced-dimension
+GH on phi_U with strong tracking), ``rdghkf`` (without strong tracking), ``ckf`` (000's
+comparator), ``ekf``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from estimators.euler_large import C_p_n, true_state
+from estimators.inertial_frame import odometer_aided_alignment, static_coarse_alignment
+from estimators.metrics import euler_error, nees
+from estimators.model import stack_episodes, wrap_angle
+from estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
+                                       OdometerLargeHeadingModel, OdometerTuning)
+from models.attitude import dcm_to_quat, quat_to_dcm
+from models.earth import radii
+from models.units import arcmin, deg
+from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode
+from scenarios.config import ConfigError, ScenarioConfig
+from scenarios.simulate import simulate
+from sensors.imu import ImuTuning
+
+STARTS = ("coarse", "large")
+DISTURBANCES = ("none", "slip", "all")
+SLIP_BURSTS = ((200.0, 0.3, 0.5), (350.0, 0.3, 0.5), (500.0, 0.3, 0.5))
+"""--disturbance slip: a driven wheel spins for 0.3 s three times, the odometer counting
+0.5 m the car did not travel each time (time s, duration s, extra m)."""
+ROUGH_ROAD_RMS = 0.004
+"""--disturbance all: slips plus a rough road (heightfield RMS, m): vibration."""
+NIS_LIMIT = 16.27
+"""Innovation test: chi-square with 3 degrees of freedom at 0.999."""
+ANGLES = ("pitch", "roll", "heading")
+
+
+@dataclass(frozen=True)
+class Paper000Experiment(Experiment):
+    """Settings (SPEC 4.2; assumed values marked). Times in s, angles in deg.
+
+    coarse_start, coarse_duration: the odometer-aided coarse window while driving (from
+    10 s after the car starts, 60 s: *assumed*); fine_duration: the fine alignment after
+    it (None: to the end of the run); attitude_sigma_deg: the filter's P0 of the Euler
+    errors E, N, U (*assumed*: 0.5, 0.5, 30; ALGORITHMS 4.3 suggests 30-60 deg for phi_U);
+    large_heading_deg: the "large" start's heading error (the coarse start's level errors
+    kept); mounting_sigma_deg: P0 of the residual odometer mounting pitch and heading
+    states (None: 000's 16-state model); measurement_sigma: per axis of the 1 s
+    position-increment difference, m (*assumed*: encoder quantization and tyre slip are
+    millimetres to centimetres); feedback_sigma_deg: closed loop once the heading sigma
+    is below it; disturbance: "none", "slip" (odometer slip bursts, ``SLIP_BURSTS``) or
+    "all" (slips and a rough road); reference_settle: s after the stop before the static
+    reference window.
+    """
+
+    scenario: str = "ring-road-odometer"
+    coarse_start: float = 15.0
+    coarse_duration: float = 60.0
+    fine_duration: float | None = None
+    filter_step: float = 1.0
+    attitude_sigma_deg: tuple[float, float, float] = (0.5, 0.5, 30.0)
+    large_heading_deg: float = 30.0
+    velocity_sigma: float = 0.1
+    position_sigma: float = 1.0
+    scale_sigma: float = 0.005
+    mounting_sigma_deg: float | None = 1.0
+    measurement_sigma: float = 0.02
+    feedback_sigma_deg: float | None = 5.0
+    disturbance: str = "none"
+    reference_settle: float = 5.0
+    rms_window: float = 60.0
+    heading_threshold_arcmin: float = 10.0
+    default_filters: tuple[str, ...] = ("sgkf", "rdghkf", "ckf", "ekf")
+
+    paper = "000"
+    worlds = ("car",)
+    state_count = 18
+    starts = STARTS
+
+    @property
+    def episode_class(self):
+        return Paper000Episode
+
+    @property
+    def duration(self) -> float:
+        from scenarios.config import load_scenario
+        if self.fine_duration is None:
+            return load_scenario(self.scenario).duration
+        return self.coarse_start + self.coarse_duration + self.fine_duration
+
+    def scenario_config(self) -> ScenarioConfig:
+        """The scenario with this experiment's duration and disturbance, checked."""
+        config = super().scenario_config()
+        self.check(config)
+        if self.disturbance in ("slip", "all"):
+            config = replace(config, odometer=replace(
+                config.odometer, slips=config.odometer.slips + SLIP_BURSTS))
+        if self.disturbance == "all":
+            config = replace(config, motion=replace(config.motion,
+                                                    roughness_rms=ROUGH_ROAD_RMS))
+        return config
+
+    def check(self, config: ScenarioConfig) -> None:
+        if config.odometer is None:
+            raise ConfigError(f"paper000 needs an [odometer] table; scenario {config.name!r} "
+                              "has none")
+        if config.motion.has_gimbal:
+            raise ConfigError("paper000 needs a strapdown IMU: motion.gimbal_outer_rate_deg_s "
+                              "and gimbal_inner_rate_deg_s must be 0")
+        if self.disturbance not in DISTURBANCES:
+            raise ConfigError(f"--disturbance {self.disturbance!r}; valid: "
+                              + ", ".join(DISTURBANCES))
+        motion = config.motion
+        start, end = self.coarse_start, self.coarse_start + self.coarse_duration
+        driving_end = min(motion.stop_time, config.duration)
+        if not (motion.start_time <= start and self.coarse_duration >= 10.0
+                and end < driving_end):
+            raise ConfigError(f"the coarse window [{start:g}, {end:g}] s must lie in the "
+                              f"driving phase [{motion.start_time:g}, {driving_end:g}) s "
+                              "and last >= 10 s")
+        if self.fine_duration is not None and not self.fine_duration >= self.filter_step:
+            raise ConfigError(f"fine_duration = {self.fine_duration:g} s must be >= "
+                              f"filter_step = {self.filter_step:g} s")
+        if self.disturbance != "none":
+            last = max(t + d for t, d, _ in SLIP_BURSTS)
+            if not (end < SLIP_BURSTS[0][0] and last < driving_end):
+                raise ConfigError(f"--disturbance {self.disturbance}: the slip bursts "
+                                  f"({SLIP_BURSTS[0][0]:g}-{last:g} s) must fall in the "
+                                  f"fine alignment's driving phase ({end:g}, "
+                                  f"{driving_end:g}) s")
+        sigma = self.mounting_sigma_deg
+        if sigma is not None and not 0.0 < sigma <= 10.0:
+            raise ConfigError(f"mounting_sigma_deg = {sigma:g} must be in (0, 10] deg")
+
+    def tuning(self, config: ScenarioConfig) -> OdometerTuning:
+        imu = ImuTuning.from_spec(config.imu)
+        return OdometerTuning(
+            attitude_sigma=tuple(a * deg for a in self.attitude_sigma_deg),
+            velocity_sigma=self.velocity_sigma, position_sigma=self.position_sigma,
+            gyro_bias_sigma=imu.gyro_bias_sigma, accel_bias_sigma=imu.accel_bias_sigma,
+            scale_sigma=self.scale_sigma, gyro_noise_density=imu.gyro_noise_density,
+            accel_noise_density=imu.accel_noise_density,
+            measurement_sigma=self.measurement_sigma,
+            mounting_sigma=(None if self.mounting_sigma_deg is None
+                            else self.mounting_sigma_deg * deg))
+
+    def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
+                        ) -> "Paper000Episode":
+        return prepare_episode(self, seed, config)
+
+    def start_errors(self, episodes):
+        coarse = np.stack([e.coarse_error for e in episodes])
+        large = coarse.copy()
+        large[:, 2] = self.large_heading_deg * deg
+        return {"coarse": coarse, "large": large}
+
+    def model(self, episodes, start_error, variant=""):
+        if variant:
+            raise ValueError(f"paper000 has no model variant {variant!r}")
+        start_error = np.broadcast_to(np.asarray(start_error, float), (len(episodes), 3))
+        config = self.scenario_config()
+        feedback = None if self.feedback_sigma_deg is None else self.feedback_sigma_deg * deg
+        return OdometerLargeHeadingModel(model_inputs(episodes, start_error),
+                                         self.tuning(config), feedback_below=feedback)
+
+    def attitude_sigma(self):
+        return np.deg2rad(self.attitude_sigma_deg)
+
+    def observed_states(self, layout):
+        return layout.indices("misalignment", "gyro_bias", "accel_bias")
+
+    def nees(self, result, episodes, error_n):
+        """NEES of the Euler errors, gyro drift and accelerometer bias (9 states)."""
+        K = result.t.size
+        C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
+        x = result.x
+        # C_est = C_p_n(phi^) C_b^n' and C_true = C_p_n(phi) C_b^n': phi from the pair.
+        C_ins = np.swapaxes(C_p_n(x[..., 0:3]), -1, -2) @ result.C_s_n
+        phi = true_state(C_true, C_ins)
+        s = result.series
+        err = np.concatenate([
+            wrap_angle(x[..., 0:3] - phi),
+            s["gyro_bias"] + x[..., 9:12] - np.stack([e.gyro_bias for e in episodes])[:, None],
+            s["accel_bias"] + x[..., 12:15]
+            - np.stack([e.accel_bias for e in episodes])[:, None]], -1)
+        sub = np.r_[0:3, 9:15]
+        return nees(err, result.P[:, :, sub][:, :, :, sub])
+
+    def summary(self, result):
+        return paper000_summary(result)
+
+    def format_tables(self, result):
+        return format_tables(result)
+
+
+@dataclass
+class Paper000Episode(PreparedEpisode):
+    """One ring-road episode from the end of the coarse window (``PreparedEpisode``;
+    C_s_b = the mounting, constant). t (K+1,) s; dtheta, dv (K, S, 3); distance (K, S) m
+    per IMU interval; coarse_C_b_n (3, 3) the coarse alignment's attitude at t[0]; v0 (3,)
+    the INS's start velocity (odometer, coarse attitude), m/s ENU; lat0, lon0, h0 the
+    start position (known); k_stop: the epoch 5 s after the car stops (the last one if
+    the run ends sooner); C_reference (3, 3) the static alignment over the still after
+    the stop (the paper's reference; NaN if the run has less than 60 s of it); coarse_error (3,)
+    rad, Euler error E, N, U of the coarse alignment; odometer_scale_true: odometer
+    distance / true rear-axle path over the drive - 1; mounting (2,) rad: the true
+    mounting pitch and heading; lever_arm_b (3,) m; imu_dt s; slips (n, 3): the bursts."""
+
+    t: np.ndarray
+    imu_dt: float
+    dtheta: np.ndarray
+    dv: np.ndarray
+    distance: np.ndarray
+    coarse_C_b_n: np.ndarray
+    v0: np.ndarray
+    lat0: float
+    lon0: float
+    h0: float
+    k_stop: int
+    C_reference: np.ndarray
+    coarse_error: np.ndarray
+    odometer_scale_true: float
+    mounting: np.ndarray
+    lever_arm_b: np.ndarray
+    slips: np.ndarray
+
+    _ARRAYS = ("t", "dtheta", "dv", "distance", "coarse_C_b_n", "v0", "C_reference",
+               "coarse_error", "mounting", "lever_arm_b", "slips", "C_s_n_true",
+               "C_b_n_true", "C_s_b", "gyro_bias", "accel_bias")
+    _SCALARS = ("imu_dt", "lat0", "lon0", "h0", "odometer_scale_true", "lat", "h")
+
+    def arrays(self):
+        return {"seed": self.seed, "k_stop": self.k_stop,
+                **{name: getattr(self, name) for name in self._ARRAYS + self._SCALARS}}
+
+    @classmethod
+    def from_arrays(cls, f):
+        return cls(seed=int(f["seed"]), k_stop=int(f["k_stop"]),
+                   **{name: np.asarray(f[name]) for name in cls._ARRAYS},
+                   **{name: float(f[name]) for name in cls._SCALARS})
+
+
+def _rear_path(truth, lever_b: np.ndarray, start: int, end: int) -> float:
+    """Length (m) of the path of the point -lever_b from the IMU (body frame) between
+    IMU boundaries start and end."""
+    R_M, R_N = radii(truth.lat[0])
+    east = (truth.lon - truth.lon[0]) * (R_N + truth.h[0]) * np.cos(truth.lat[0])
+    north = (truth.lat - truth.lat[0]) * (R_M + truth.h[0])
+    site = np.stack([east, north, truth.h], -1)[start:end + 1]
+    point = site - np.einsum("kij,j->ki", quat_to_dcm(truth.q_s_n[start:end + 1]), lever_b)
+    return float(np.sum(np.linalg.norm(np.diff(point, axis=0), axis=1)))
+
+
+def prepare_episode(experiment: Paper000Experiment, seed: int,
+                    config: ScenarioConfig | None = None) -> Paper000Episode:
+    """Simulate the drive, align coarsely while driving, take the static reference after
+    the stop, cut the data into the filter's epochs."""
+    config = config or experiment.scenario_config()
+    episode = simulate(config, seed=seed)
+    truth, dt = episode.truth, config.imu_interval
+    motion, odo = config.motion, config.odometer
+    distance = episode.extra["odo_distance"]
+    lever_b = np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
+    i_start = int(round(experiment.coarse_start / dt))
+    i0 = int(round((experiment.coarse_start + experiment.coarse_duration) / dt))
+    C_coarse, _ = odometer_aided_alignment(
+        episode.dtheta[i_start:i0], episode.dv[i_start:i0], dt, distance[i_start:i0 + 1],
+        config.latitude, config.height, lever_arm_b=lever_b)
+    per = int(round(experiment.filter_step / dt))
+    epochs = (truth.t.size - 1 - i0) // per
+    idx = i0 + per * np.arange(epochs + 1)
+    increments = np.diff(distance)
+    # Start velocity: the odometer's (centred over 1 s) resolved with the coarse attitude.
+    half = int(round(0.5 / dt))
+    speed = (distance[i0 + half] - distance[i0 - half]) / (2 * half * dt)
+    rate = episode.dtheta[i0 - half: i0 + half].sum(0) / (2 * half * dt)
+    v0 = C_coarse @ (np.array([0.0, speed, 0.0]) + np.cross(rate, lever_b))
+    # The stop and the paper's reference: static alignment over the still after it (a
+    # run that ends sooner has none: NaN, and its "stop" is its last epoch).
+    k_stop = min(int(np.searchsorted(truth.t[idx], motion.stop_time + 5.0)), epochs)
+    r0 = int(round((motion.stop_time + experiment.reference_settle) / dt))
+    n_ref = truth.t.size - 1 - r0
+    C_reference = np.full((3, 3), np.nan)
+    if n_ref * dt >= 60.0:
+        C_reference = static_coarse_alignment(episode.dv[r0:].sum(0) / (n_ref * dt),
+                                              episode.dtheta[r0:].sum(0) / (n_ref * dt),
+                                              float(truth.lat[r0]))
+    drive = (i0, min(int(round(motion.stop_time / dt)), truth.t.size - 1))
+    C_s_n = quat_to_dcm(truth.q_s_n[idx])
+    C_b_n = quat_to_dcm(truth.q_b_n[idx])
+    return Paper000Episode(
+        seed=seed, t=truth.t[idx], imu_dt=dt,
+        dtheta=episode.dtheta[i0: idx[-1]].reshape(epochs, per, 3),
+        dv=episode.dv[i0: idx[-1]].reshape(epochs, per, 3),
+        distance=increments[i0: idx[-1]].reshape(epochs, per), coarse_C_b_n=C_coarse,
+        v0=v0, lat0=float(truth.lat[i0]), lon0=float(truth.lon[i0]), h0=float(truth.h[i0]),
+        k_stop=k_stop, C_reference=C_reference,
+        coarse_error=true_state(C_s_n[0], C_coarse),
+        odometer_scale_true=float((distance[drive[1]] - distance[drive[0]])
+                                  / _rear_path(truth, lever_b, *drive) - 1.0),
+        mounting=np.array([odo.mounting_pitch, odo.mounting_heading]), lever_arm_b=lever_b,
+        slips=np.array(odo.slips, dtype=float).reshape(-1, 3),
+        C_s_n_true=C_s_n, C_b_n_true=C_b_n, C_s_b=np.swapaxes(C_b_n, -1, -2) @ C_s_n,
+        gyro_bias=episode.imu_realization.gyro.bias,
+        accel_bias=episode.imu_realization.accel.bias,
+        lat=float(truth.lat[0]), h=float(truth.h[0]))
+
+
+def model_inputs(episodes: list[Paper000Episode], start_error: np.ndarray) -> OdometerInputs:
+    """The model's inputs; each INS starts from the true attitude turned by its Euler error
+    (E, N, U, rad: C_b^n' = C_p_n(phi)^T C_b^n), at the coarse stage's velocity and the
+    known start position."""
+    parts = []
+    for e, phi in zip(episodes, start_error):
+        C0 = np.swapaxes(C_p_n(phi), -1, -2) @ e.C_s_n_true[0]
+        parts.append(OdometerInputs(
+            t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
+            distance=e.distance[None], C_m_b=np.eye(3)[None], lever_arm_b=e.lever_arm_b[None],
+            q_b_n0=dcm_to_quat(C0)[None], v_n0=e.v0[None], lat0=np.array([e.lat0]),
+            lon0=np.array([e.lon0]), h0=np.array([e.h0])))
+    return stack_episodes(parts, shared=("t", "imu_dt"))
+
+
+# --- metrics ---------------------------------------------------------------------------------
+def _stats(errors: np.ndarray) -> dict:
+    """mean, std, RMS over episodes of (B, 3) errors in rad -> arcmin lists."""
+    e = errors / arcmin
+    return {"mean_arcmin": e.mean(0).tolist(), "std_arcmin": e.std(0).tolist(),
+            "rms_arcmin": np.sqrt((e ** 2).mean(0)).tolist()}
+
+
+def run_metrics(result: CampaignResult, run) -> dict:
+    """One filter from one start: errors at the stop against the truth and the static
+    reference ([pitch, roll, heading]), the odometer scale and mounting estimates'
+    errors, the innovation test's flags (all, and within 1 epoch after a slip burst)."""
+    episodes = result.episodes
+    k = np.array([e.k_stop for e in episodes])
+    b = np.arange(len(episodes))
+    C_est = run.result.C_s_n[b, k]                                    # IMU frame
+    vs_truth = euler_error(np.stack([e.C_s_n_true[i] for e, i in zip(episodes, k)]), C_est)
+    vs_reference = euler_error(np.stack([e.C_reference for e in episodes]), C_est)
+    series, x = run.result.series, run.result.x
+    scale = series["scale"][b, k] * (1.0 + x[b, k, KD])
+    true = np.array([e.odometer_scale_true for e in episodes])
+    dkd_error = scale * (1.0 + true) - 1.0                            # relative
+    out = {"vs_truth": _stats(vs_truth), "vs_reference": _stats(vs_reference),
+           "diverged_fraction": float(run.diverged.mean()),
+           "dkd_error_ppm": float(np.sqrt(np.mean(dkd_error ** 2)) * 1e6),
+           "heading_convergence_s": float(np.mean(run.heading_convergence))}
+    if "mounting" in series and x.shape[-1] > MOUNT_PITCH:
+        mount = series["mounting"][b, k] + x[b, k, MOUNT_PITCH:]
+        truth = np.stack([e.mounting for e in episodes])
+        out["mounting_error_deg"] = (np.sqrt(np.mean((mount - truth) ** 2, 0)) / deg).tolist()
+    nis = run.result.nis
+    flagged = nis > NIS_LIMIT
+    out["flagged_epochs"] = float(np.mean(np.sum(flagged, axis=1)))
+    t = run.result.t
+    bursts = [(e.slips[:, 0], e.slips[:, 1]) for e in episodes]
+    if episodes[0].slips.size:
+        hits = []
+        for i, (start, duration) in enumerate(bursts):
+            for s, d in zip(start, duration):
+                window = (t[1:] >= s) & (t[1:] <= s + d + run.result.t[1] - t[0] + 1e-9)
+                hits.append(bool(flagged[i, window].any()))
+        out["slip_bursts_flagged"] = float(np.mean(hits))
+    return out
+
+
+def paper000_summary(result: CampaignResult) -> dict:
+    """{"fine": {FILTER: {"vs_truth": {"mean_arcmin", "std_arcmin", "rms_arcmin"} (pitch,
+    roll, heading at the stop), "vs_reference": {...}, "diverged_fraction",
+    "dkd_error_ppm", "heading_convergence_s", "mounting_error_deg" [pitch, heading],
+    "flagged_epochs", "slip_bursts_flagged"}}} for the coarse start, and the same under
+    "fine_large" for the large-heading start; "coarse": the coarse stage's Euler errors."""
+    out = {"fine": {}, "fine_large": {}}
+    for run in result.runs:
+        key = "fine" if run.start == "coarse" else "fine_large"
+        out[key][run.filter] = run_metrics(result, run)
+    out["coarse"] = _stats(np.stack([e.coarse_error for e in result.episodes]))
+    return out
+
+
+def format_tables(result: CampaignResult) -> str:
+    """The paper's table: per filter, the error at the stop against the reference and
+    against the truth (mean and std over episodes, arcmin), and the odometer estimates."""
+    summary = paper000_summary(result)
+    coarse = summary["coarse"]
+    lines = [f"Ring road, {len(result.seeds)} runs. Coarse (odometer-aided, in motion), "
+             "Euler error E, N, U (arcmin): mean " + " ".join(
+                 f"{v:8.2f}" for v in coarse["mean_arcmin"]) + ", std " + " ".join(
+                 f"{v:8.2f}" for v in coarse["std_arcmin"])]
+    for key, label in (("fine", "from the coarse alignment"),
+                       ("fine_large", f"from a {result.experiment.large_heading_deg:g} deg "
+                                      "heading error")):
+        lines += ["", f"At the stop, {label}: pitch, roll, heading (arcmin) against the "
+                  "static reference / the truth",
+                  f"{'filter':8s}{'stat':6s}" + "".join(f"{'ref ' + a:>12s}" for a in ANGLES)
+                  + "".join(f"{'true ' + a:>13s}" for a in ANGLES)
+                  + f"{'dK_D ppm':>10s}{'mount deg':>14s}{'flagged':>9s}{'div':>6s}"]
+        for name, s in summary[key].items():
+            for stat in ("mean", "std"):
+                tail = ""
+                if stat == "mean":
+                    mount = s.get("mounting_error_deg")
+                    mount = "-" if mount is None else "/".join(f"{v:.2f}" for v in mount)
+                    tail = (f"{s['dkd_error_ppm']:10.0f}{mount:>14s}"
+                            f"{s['flagged_epochs']:9.1f}{s['diverged_fraction']:6.0%}")
+                lines.append(f"{name if stat == 'mean' else '':8s}{stat:6s}"
+                             + "".join(f"{v:12.2f}" for v in s["vs_reference"][f"{stat}_arcmin"])
+                             + "".join(f"{v:13.2f}" for v in s["vs_truth"][f"{stat}_arcmin"])
+                             + tail)
+    return "\n".join(lines)
