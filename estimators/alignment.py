@@ -38,8 +38,9 @@ class FineResult:
     seconds_per_epoch: float
     series: dict[str, np.ndarray] = field(default_factory=dict)
     nis: np.ndarray | None = None
-    """(B, K) normalised innovation squared e^T S^-1 e of each update (NaN: none), the
-    innovation test's statistic (chi-square with ``nis_dof`` degrees of freedom)."""
+    """(B, K) normalised innovation squared e^T S^-1 e of each update with the predicted
+    (unadapted) S (NaN: none): the innovation test's statistic, chi-square with
+    ``nis_dof`` degrees of freedom for a consistent filter."""
     nis_dof: np.ndarray | None = None
 
 
@@ -98,10 +99,13 @@ class AlignmentRun:
         self.factors[:, k, :width] = filt.factors
         if filt.innovation is not None:
             live = filt.live
-            e = np.where(live[:, None], filt.innovation, 0.0)
-            S = np.where(live[:, None, None], filt.S, np.eye(e.shape[-1]))
+            e, S, valid = filt.predicted
+            eye = np.eye(e.shape[-1])
+            e = np.where(live[:, None] & valid, e, 0.0)
+            S = np.where(live[:, None, None] & valid[:, :, None] & valid[:, None, :], S, eye)
+            S = np.where(np.isfinite(S), S, eye)
             nis = np.einsum("bi,bi->b", e, np.linalg.solve(S, e[..., None])[..., 0])
-            dof = filt.valid.sum(-1)
+            dof = valid.sum(-1)
             self.nis[:, k] = np.where((dof > 0) & live, nis, np.nan)
             self.nis_dof[:, k] = dof
         filt.x, filt.P = model.feedback(filt.x, filt.P, filt.live)

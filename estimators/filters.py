@@ -147,6 +147,8 @@ class GaussianFilter:
             H = observation.matrix
         else:  # statistical linearisation P_xz^T P_pred^-1, for the policies
             H = np.swapaxes(np.linalg.pinv(P_pred, hermitian=True) @ P_xz, -1, -2)
+        # Before adaptation and rejection: what the innovation test looks at.
+        self.predicted = (innovation, P_zz + R, valid)
         ctx = AdaptationContext(innovation=innovation, valid=valid, S=P_zz + R, P_xz=P_xz,
                                 PhiPPhi=PhiPPhi, Q=Q, R=R, H=H, axes=observation.axes,
                                 motion=observation.motion, directions=observation.directions,

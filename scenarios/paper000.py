@@ -60,7 +60,7 @@ class Paper000Experiment(Experiment):
     millimetres to centimetres); feedback_sigma_deg: closed loop once the heading sigma
     is below it; disturbance: "none", "slip" (odometer slip bursts, ``SLIP_BURSTS``) or
     "all" (slips and a rough road); reference_settle: s after the stop before the static
-    reference window.
+    reference window; starts: the fine alignment's starts (``STARTS``).
     """
 
     scenario: str = "ring-road-odometer"
@@ -81,11 +81,11 @@ class Paper000Experiment(Experiment):
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 10.0
     default_filters: tuple[str, ...] = ("sgkf", "rdghkf", "ckf", "ekf")
+    starts: tuple[str, ...] = STARTS
 
     paper = "000"
     worlds = ("car",)
     state_count = 18
-    starts = STARTS
 
     @property
     def episode_class(self):
@@ -117,6 +117,8 @@ class Paper000Experiment(Experiment):
         if config.motion.has_gimbal:
             raise ConfigError("paper000 needs a strapdown IMU: motion.gimbal_outer_rate_deg_s "
                               "and gimbal_inner_rate_deg_s must be 0")
+        if not self.starts or set(self.starts) - set(STARTS):
+            raise ConfigError(f"starts = {self.starts}; valid: " + ", ".join(STARTS))
         if self.disturbance not in DISTURBANCES:
             raise ConfigError(f"--disturbance {self.disturbance!r}; valid: "
                               + ", ".join(DISTURBANCES))
@@ -364,13 +366,14 @@ def run_metrics(result: CampaignResult, run) -> dict:
     nis = run.result.nis
     flagged = nis > NIS_LIMIT
     out["flagged_epochs"] = float(np.mean(np.sum(flagged, axis=1)))
-    t = run.result.t
-    bursts = [(e.slips[:, 0], e.slips[:, 1]) for e in episodes]
     if episodes[0].slips.size:
+        t = episodes[0].t[: run.result.t.size]         # the run's epochs, s of the episode
+        step = t[1] - t[0]
         hits = []
-        for i, (start, duration) in enumerate(bursts):
-            for s, d in zip(start, duration):
-                window = (t[1:] >= s) & (t[1:] <= s + d + run.result.t[1] - t[0] + 1e-9)
+        for i, e in enumerate(episodes):
+            for start, duration, _ in e.slips:
+                # Flagged at the update that ends the burst's epoch, or the next one.
+                window = (t[1:] > start) & (t[1:] <= start + duration + step + 1e-9)
                 hits.append(bool(flagged[i, window].any()))
         out["slip_bursts_flagged"] = float(np.mean(hits))
     return out
