@@ -121,13 +121,24 @@ class GaussianFilter:
         the adaptation policy may fade it)."""
         if self._pending is not None:  # no update since the last predict
             self.P = self._pending[0] + self._pending[1]
-        x_pred, PhiPPhi, _ = self.rule.moments(transition, self.x, self.P)
+        live = self.live
+        # Diverged (frozen) episodes go through the rule at a harmless point, so that
+        # their state cannot turn the batch's linear algebra into NaN.
+        x_in, P_in = self._harmless(self.x, self.P)
+        x_pred, PhiPPhi, _ = self.rule.moments(transition, x_in, P_in)
         if self.angles:
             idx = list(self.angles)
             x_pred[:, idx] = wrap_angle(x_pred[:, idx])
-        live = self.live
         self.x = np.where(live[:, None], x_pred, self.x)
         self._pending = (PhiPPhi, transition.noise)
+
+    def _harmless(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x and P with the diverged episodes' replaced by zero and the identity."""
+        live = self.live
+        if live.all():
+            return x, P
+        return (np.where(live[:, None], x, 0.0),
+                np.where(live[:, None, None], P, np.eye(P.shape[-1])))
 
     def update(self, observation: Observation) -> None:
         """Measurement update at observation.t (s); missing components are skipped."""
@@ -140,8 +151,14 @@ class GaussianFilter:
         z = np.where(valid, observation.z, 0.0)
         R = observation.noise
         P_pred = symmetric(PhiPPhi + Q)
+        finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) & np.all(np.isfinite(self.x), -1)
+        self.health.flag(~finite & live, t, "predicted state or covariance NaN/inf")
+        live = self.live
+        valid = valid & live[:, None]
+        z = np.where(valid, observation.z, 0.0)
         P_pred = self._repair(P_pred, t)
-        z_hat, P_zz, P_xz = self.rule.moments(observation, self.x, P_pred)
+        x_in, P_pred = self._harmless(self.x, P_pred)
+        z_hat, P_zz, P_xz = self.rule.moments(observation, x_in, P_pred)
         innovation = _innovation(observation, z, z_hat, valid)
         if observation.linear:
             H = observation.matrix

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
-from estimators.strapdown import Strapdown, StrapdownState
+from estimators.strapdown import AidedStrapdown
 from models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
 from models.earth import (C_n_e, OMEGA_IE, ecef_to_geodetic, geodetic_to_ecef,
                           normal_gravity)
@@ -146,10 +146,8 @@ class LooselyCoupledModel(FilterModel):
         B, K, S = inputs.dtheta.shape[:3]
         self.batch, self.epochs, self.t = B, K, inputs.t
         self.step = float(inputs.t[1] - inputs.t[0])
-        self.ins = Strapdown(StrapdownState.from_arrays(
-            inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0, inputs.h0), inputs.imu_dt)
-        self.gyro_bias = np.zeros((B, 3))
-        self.accel_bias = np.zeros((B, 3))
+        self.ins = AidedStrapdown(inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0,
+                                  inputs.h0, inputs.imu_dt)
         self._omega_ib_b = np.zeros((B, 3))
         self._series = {"lat": np.full((B, K + 1), np.nan), "lon": np.full((B, K + 1), np.nan),
                         "h": np.full((B, K + 1), np.nan),
@@ -190,7 +188,7 @@ class LooselyCoupledModel(FilterModel):
         out["v_n"][:, k] = s.v_n
         C_b_n, C_ne, C_b_e, r_e, v_e = self._navigation()
         out["C_b_n"][:, k] = C_b_n
-        out["gyro_bias"][:, k], out["accel_bias"][:, k] = self.gyro_bias, self.accel_bias
+        out["gyro_bias"][:, k], out["accel_bias"][:, k] = self.ins.gyro_bias, self.ins.accel_bias
         lever_r, lever_v = self._lever(C_b_e)
         r_g, v_g, _ = self._gps(k)
         C_en = np.swapaxes(C_ne, -1, -2)
@@ -221,9 +219,7 @@ class LooselyCoupledModel(FilterModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         inp, dt = self.inputs, self.inputs.imu_dt
-        dtheta = inp.dtheta[:, k] - self.gyro_bias[:, None] * dt
-        dv = inp.dv[:, k] - self.accel_bias[:, None] * dt
-        out = self.ins.run(dtheta, dv)
+        out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
         S = dtheta.shape[1]
         last = max(1, int(round(RATE_WINDOW / dt)))
         self._omega_ib_b = dtheta[:, -last:].mean(1) / dt
@@ -307,8 +303,8 @@ class LooselyCoupledModel(FilterModel):
         s.q_b_n = dcm_to_quat(C_en @ C_b_e)
         s.v_n = np.einsum("bij,bj->bi", C_en, v_e)
         s.lat, s.lon, s.h = lat, lon, h
-        self.gyro_bias = self.gyro_bias + x[:, GYRO]
-        self.accel_bias = self.accel_bias + x[:, ACCEL]
+        self.ins.gyro_bias = self.ins.gyro_bias + x[:, GYRO]
+        self.ins.accel_bias = self.ins.accel_bias + x[:, ACCEL]
         self._store(self._k)
         return np.where(live[:, None], 0.0, x), P
 

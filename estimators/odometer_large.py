@@ -26,7 +26,7 @@ import numpy as np
 
 from estimators.euler_large import C_p_n, reset_jacobian
 from estimators.model import FilterModel, Observation, StateLayout, Transition
-from estimators.strapdown import Strapdown, StrapdownState
+from estimators.strapdown import AidedStrapdown
 from models.attitude import dcm_to_quat, quat_to_dcm, skew
 from models.earth import OMEGA_IE, earth_rate_n, radii, transport_rate_n
 
@@ -203,10 +203,8 @@ class OdometerLargeHeadingModel(FilterModel):
         B, K, S = inputs.dtheta.shape[:3]
         self.batch, self.epochs, self.t = B, K, inputs.t
         self.T = float(inputs.t[1] - inputs.t[0])
-        self.ins = Strapdown(StrapdownState.from_arrays(
-            inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0, inputs.h0), inputs.imu_dt)
-        self.gyro_bias = np.zeros((B, 3))
-        self.accel_bias = np.zeros((B, 3))
+        self.ins = AidedStrapdown(inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0,
+                                  inputs.h0, inputs.imu_dt)
         self.scale = np.ones(B)
         self.mount = np.zeros((B, 2))          # accumulated mounting pitch, heading (rad)
         self.feedback_count = np.zeros(B, int)
@@ -240,9 +238,7 @@ class OdometerLargeHeadingModel(FilterModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         inp, dt, T = self.inputs, self.inputs.imu_dt, self.T
-        dtheta = inp.dtheta[:, k] - self.gyro_bias[:, None] * dt
-        dv = inp.dv[:, k] - self.accel_bias[:, None] * dt
-        out = self.ins.run(dtheta, dv)
+        out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
         S = dtheta.shape[1]
         C = quat_to_dcm(out["q_b_n"])                                  # (B, S+1, 3, 3)
         mid = S // 2
@@ -333,8 +329,8 @@ class OdometerLargeHeadingModel(FilterModel):
                 s.lat[b] -= x[b, 6]
                 s.lon[b] -= x[b, 7]
                 s.h[b] -= x[b, 8]
-                self.gyro_bias[b] += x[b, EPS]
-                self.accel_bias[b] += x[b, NABLA]
+                self.ins.gyro_bias[b] += x[b, EPS]
+                self.ins.accel_bias[b] += x[b, NABLA]
                 self.scale[b] *= 1.0 + x[b, KD]
                 if self.mounting:
                     self.mount[b] += x[b, MOUNT_PITCH:]
@@ -344,8 +340,8 @@ class OdometerLargeHeadingModel(FilterModel):
                 P[b] = J @ P[b] @ np.swapaxes(J, -1, -2)
                 x[b] = 0.0
                 self.feedback_count[b] += 1
-        self._series["gyro_bias"][:, k] = self.gyro_bias
-        self._series["accel_bias"][:, k] = self.accel_bias
+        self._series["gyro_bias"][:, k] = self.ins.gyro_bias
+        self._series["accel_bias"][:, k] = self.ins.accel_bias
         self._series["scale"][:, k] = self.scale
         self._series["mounting"][:, k] = self.mount
         return x, P

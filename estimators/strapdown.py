@@ -226,6 +226,27 @@ class Strapdown:
         return self.state
 
 
+class AidedStrapdown(Strapdown):
+    """The strapdown of an aided, closed-loop filter model: B episodes started from
+    arrays, the increments compensated with the accumulated sensor-bias estimates
+    gyro_bias (B, 3) rad/s and accel_bias (B, 3) m/s^2 before mechanization."""
+
+    def __init__(self, q_b_n0: np.ndarray, v_n0: np.ndarray, lat0: np.ndarray,
+                 lon0: np.ndarray, h0: np.ndarray, dt: float) -> None:
+        super().__init__(StrapdownState.from_arrays(q_b_n0, v_n0, lat0, lon0, h0), dt)
+        B = self.state.q_b_n.shape[0]
+        self.gyro_bias = np.zeros((B, 3))
+        self.accel_bias = np.zeros((B, 3))
+
+    def run_compensated(self, dtheta: np.ndarray, dv: np.ndarray
+                        ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+        """``run`` on the raw increments (B, M, 3) less the bias estimates; returns the
+        trajectory and the compensated increments."""
+        dtheta = dtheta - self.gyro_bias[:, None] * self.dt
+        dv = dv - self.accel_bias[:, None] * self.dt
+        return self.run(dtheta, dv), dtheta, dv
+
+
 def run_strapdown(initial: StrapdownState, dtheta: np.ndarray, dv: np.ndarray, dt: float
                   ) -> dict[str, np.ndarray]:
     """Integrate increments (B, M, 3) (or (M, 3)) from the initial state; returns the

@@ -27,6 +27,8 @@ from scenarios.config import ConfigError
 BASELINE_DIR = Path(__file__).resolve().parents[1] / "tests" / "baselines"
 
 CAMPAIGNS = {
+    "paper000": {"episodes": 2, "seed": 5, "filters": ["rdghkf", "ekf"],
+                 "experiment": {"fine_duration": 200.0, "starts": ["coarse"]}},
     "paper001": {"episodes": 2, "seed": 11, "filters": ["lckf", "rakf", "swakf"],
                  "experiment": {"fine_duration": 300.0}},
     "paper002": {"episodes": 8, "seed": 3, "filters": ["ekf", "ukf", "sghkf-2", "sghkf-4"]},
@@ -39,7 +41,8 @@ CAMPAIGNS = {
 settings of the experiment that differ from its defaults (a shorter fine alignment keeps
 the suite quick; the filters still converge). Filters that diverge on these episodes
 are left out: a diverging filter amplifies last bits without bound, so its numbers are
-not reproducible across machines (ckf on paper 002 does, from the 58.5 deg start)."""
+not reproducible across machines (ckf on paper 002 does, from the 58.5 deg start; on
+paper 000 ckf and sgkf diverge in some episodes and the large start is left out)."""
 
 SKIPPED = ("us_per_epoch",)
 """Summary entries that are measurements of this machine, not results."""

@@ -221,7 +221,7 @@ def test_error_model_propagates_errors_as_the_strapdown_does(ideal_motion):
     perturbed_inputs.lat0, perturbed_inputs.lon0 = np.array([lat]), np.array([lon])
     perturbed_inputs.h0 = np.array([h])
     perturbed = LooselyCoupledModel(perturbed_inputs, TUNING)
-    perturbed.gyro_bias, perturbed.accel_bias = -x0[None, 9:12], -x0[None, 12:15]
+    perturbed.ins.gyro_bias, perturbed.ins.accel_bias = -x0[None, 9:12], -x0[None, 12:15]
     x = x0[None]
     for k in range(seconds):
         Phi = reference.transition(k).matrix
@@ -265,7 +265,7 @@ def test_measurement_matrix_and_feedback_against_the_navigation_solution(ideal_m
     perturbed_inputs.h0 = np.array([h])
     perturbed = LooselyCoupledModel(perturbed_inputs, TUNING)
     drift = np.array([2e-4, -1e-4, 3e-4])
-    perturbed.gyro_bias = -drift[None]
+    perturbed.ins.gyro_bias = -drift[None]
     reference.transition(0)
     perturbed.transition(0)
     (r, v, C), (r_p, v_p, C_p) = _ins_ecef(reference), _ins_ecef(perturbed)
@@ -284,7 +284,7 @@ def test_measurement_matrix_and_feedback_against_the_navigation_solution(ideal_m
     np.testing.assert_allclose(r_p, r, atol=1e-6)
     np.testing.assert_allclose(v_p, v, atol=1e-9)
     assert np.abs(_misalignment_e(C_p, C)).max() < 1e-9
-    np.testing.assert_allclose(perturbed.gyro_bias, 0.0, atol=1e-18)
+    np.testing.assert_allclose(perturbed.ins.gyro_bias, 0.0, atol=1e-18)
 
 
 def test_robust_adaptive_factor_weights_and_rejection():

@@ -32,10 +32,11 @@ def rough(name, duration):
 
 
 @pytest.mark.parametrize("name", ["ring-road-odometer", "figure8-gps"])
-def test_fidelity_rough_road_500hz_600s(name):
-    """SPEC 3 over 600 s on a rough road at 500 Hz, asserted 5x better (measured 0.016 /
+def test_fidelity_rough_road_500hz_300s(name):
+    """SPEC 3's bounds on a rough road at 500 Hz, asserted 5x better over 300 s (the
+    600 s SPEC run is the smooth-road test's; over 600 s rough the errors measured 0.016 /
     0.025 arcsec, 0.19 / 0.50 mm/s, 0.05 / 0.14 m on the ring / figure-8)."""
-    err = fidelity_errors(rough(name, 600.0), seed=3)
+    err = fidelity_errors(rough(name, 300.0), seed=3)
     assert err["attitude_rad"] < 0.2 * arcsec and err["velocity_m_s"] < 1e-3
     assert err["position_m"] < 0.2
 
