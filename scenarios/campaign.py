@@ -156,6 +156,11 @@ class Experiment(ABC):
         """The paper-shaped tables."""
         return format_fine_table(result, self.starts[0])
 
+    def plots(self, result: "CampaignResult", out: Path) -> list[Path]:
+        """The experiment's own plots (PNG) in out, besides the error curves; none by
+        default."""
+        return []
+
     def check(self, config: ScenarioConfig) -> None:
         """One-line ConfigError for settings of the scenario the experiment cannot use
         (called before any episode is simulated)."""

@@ -201,6 +201,9 @@ class Paper000Experiment(Experiment):
     def summary(self, result):
         return paper000_summary(result)
 
+    def plots(self, result, out):
+        return plot_sensor_estimates(result, out)
+
     def format_tables(self, result):
         return format_tables(result)
 
@@ -423,3 +426,59 @@ def format_tables(result: CampaignResult) -> str:
                              + "".join(f"{v:13.2f}" for v in s["vs_truth"][f"{stat}_arcmin"])
                              + tail)
     return "\n".join(lines)
+
+
+def plot_sensor_estimates(result: CampaignResult, out) -> list:
+    """sensor_estimates.png: on the first episode, each filter's (coarse start) estimates
+    of the odometer scale error (ppm), the mounting pitch and heading (deg) and the gyro
+    drifts (deg/h) with their +-3 sigma bounds, against the truth (dashed black); each
+    panel zoomed on the tightest filter's final band."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from models.units import deg_per_h
+
+    runs = [r for r in result.runs if r.start == "coarse"]
+    if not runs:
+        return []
+    e = result.episodes[0]
+    fig, axes = plt.subplots(3, 2, figsize=(11, 9), sharex=True)
+    panels = [("dK_D (ppm)", KD, 1e6, None), ("mounting pitch (deg)", MOUNT_PITCH, 1 / deg,
+                                              e.mounting[0]),
+              ("mounting heading (deg)", MOUNT_PITCH + 1, 1 / deg, e.mounting[1])] + [
+        (f"gyro drift {axis} (deg/h)", 9 + i, 1 / deg_per_h, e.gyro_bias[i])
+        for i, axis in enumerate("xyz")]
+    true_scale = 1.0 / (1.0 + e.odometer_scale_true) - 1.0
+    for ax, (label, i, unit, truth) in zip(axes.ravel(), panels):
+        final_sigmas = []
+        for j, run in enumerate(runs):
+            r = run.result
+            if r.x.shape[-1] <= i:
+                continue
+            t = r.t - r.t[0]
+            s = r.series
+            base = {KD: s["scale"][0] - 1.0, MOUNT_PITCH: s["mounting"][0, :, 0],
+                    MOUNT_PITCH + 1: s["mounting"][0, :, 1]}.get(
+                i, s["gyro_bias"][0, :, i - 9] if 9 <= i < 12 else 0.0)
+            estimate = (base + r.x[0, :, i]) * unit
+            sigma = 3 * np.sqrt(np.maximum(r.P[0, :, i, i], 0.0)) * unit
+            ax.plot(t, estimate, color=f"C{j}", label=run.filter)
+            ax.fill_between(t, estimate - sigma, estimate + sigma, color=f"C{j}", alpha=0.1)
+            final_sigmas.append(sigma[-1])
+        truth_value = (true_scale if i == KD else truth) * unit
+        ax.axhline(truth_value, color="k", ls="--", lw=0.8)
+        if final_sigmas:   # zoom on the best filter's band (a diverged one would hide it)
+            span = max(10.0 * min(final_sigmas), 2.0 * abs(truth_value), 1e-9)
+            ax.set_ylim(truth_value - span, truth_value + span)
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("time since the start of fine alignment (s)")
+    fig.suptitle(f"Sensor-error estimates, seed {result.seeds[0]} (bands: +-3 sigma; "
+                 "dashed: truth)")
+    fig.tight_layout()
+    path = out / "sensor_estimates.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return [path]

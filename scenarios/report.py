@@ -70,6 +70,7 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     np.savez_compressed(out / "timeseries.npz", **series)
     written.append(out / "timeseries.npz")
     written += plot_errors(result, out)
+    written += result.experiment.plots(result, out)
     return written
 
 
