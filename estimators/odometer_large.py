@@ -191,8 +191,9 @@ def increment_map(phi_U: np.ndarray, dS: np.ndarray, T: float,
 class OdometerLargeHeadingModel(FilterModel):
     """The 16-state model (module docstring) on B episodes; feedback_below: heading sigma
     (rad) below which an episode's estimate is fed back after each update (None: open
-    loop throughout). ``series``: the accumulated gyro_bias, accel_bias and scale
-    estimates (B, K+1, ...), with x they give the sensor-error estimates."""
+    loop throughout). ``series``: the accumulated gyro_bias, accel_bias, scale and
+    mounting estimates (B, K+1, ...), which with x give the sensor-error estimates, and
+    v_n, the velocity estimate (INS less dv), m/s ENU."""
 
     def __init__(self, inputs: OdometerInputs, tuning: OdometerTuning,
                  feedback_below: float | None = None) -> None:
@@ -212,7 +213,9 @@ class OdometerLargeHeadingModel(FilterModel):
         self._C_b_n[:, 0] = quat_to_dcm(self.ins.state.q_b_n)
         self._series = {"gyro_bias": np.zeros((B, K + 1, 3)),
                         "accel_bias": np.zeros((B, K + 1, 3)), "scale": np.ones((B, K + 1)),
-                        "mounting": np.zeros((B, K + 1, 2))}
+                        "mounting": np.zeros((B, K + 1, 2)),
+                        "v_n": np.zeros((B, K + 1, 3))}
+        self._series["v_n"][:, 0] = self.ins.state.v_n
         self._increment = None
         self._k = 0
 
@@ -344,6 +347,7 @@ class OdometerLargeHeadingModel(FilterModel):
         self._series["accel_bias"][:, k] = self.ins.accel_bias
         self._series["scale"][:, k] = self.scale
         self._series["mounting"][:, k] = self.mount
+        self._series["v_n"][:, k] = self.ins.state.v_n - x[:, DV]     # the estimate
         return x, P
 
     def attitude(self, k, x):

@@ -219,7 +219,8 @@ class Paper000Episode(PreparedEpisode):
     the stop (the paper's reference; NaN if the run has less than 60 s of it); coarse_error (3,)
     rad, Euler error E, N, U of the coarse alignment; odometer_scale_true: odometer
     distance / true rear-axle path over the drive - 1; mounting (2,) rad: the true
-    mounting pitch and heading; lever_arm_b (3,) m; imu_dt s; slips (n, 3): the bursts."""
+    mounting pitch and heading; lever_arm_b (3,) m; imu_dt s; slips (n, 3): the bursts;
+    true_v_n (K+1, 3) m/s, the IMU's velocity at the boundaries."""
 
     t: np.ndarray
     imu_dt: float
@@ -238,8 +239,9 @@ class Paper000Episode(PreparedEpisode):
     mounting: np.ndarray
     lever_arm_b: np.ndarray
     slips: np.ndarray
+    true_v_n: np.ndarray
 
-    _ARRAYS = ("t", "dtheta", "dv", "distance", "coarse_C_b_n", "v0", "C_reference",
+    _ARRAYS = ("t", "true_v_n", "dtheta", "dv", "distance", "coarse_C_b_n", "v0", "C_reference",
                "coarse_error", "mounting", "lever_arm_b", "slips", "C_s_n_true",
                "C_b_n_true", "C_s_b", "gyro_bias", "accel_bias")
     _SCALARS = ("imu_dt", "lat0", "lon0", "h0", "odometer_scale_true", "lat", "h")
@@ -314,7 +316,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
         odometer_scale_true=float((distance[drive[1]] - distance[drive[0]])
                                   / _rear_path(truth, lever_b, *drive) - 1.0),
         mounting=np.array([odo.mounting_pitch, odo.mounting_heading]), lever_arm_b=lever_b,
-        slips=np.array(odo.slips, dtype=float).reshape(-1, 3),
+        slips=np.array(odo.slips, dtype=float).reshape(-1, 3), true_v_n=truth.v_n[idx],
         C_s_n_true=C_s_n, C_b_n_true=C_b_n, C_s_b=np.swapaxes(C_b_n, -1, -2) @ C_s_n,
         gyro_bias=episode.imu_realization.gyro.bias,
         accel_bias=episode.imu_realization.accel.bias,
@@ -358,7 +360,13 @@ def run_metrics(result: CampaignResult, run) -> dict:
     scale = series["scale"][b, k] * (1.0 + x[b, k, KD])
     true = np.array([e.odometer_scale_true for e in episodes])
     dkd_error = scale * (1.0 + true) - 1.0                            # relative
+    K = run.result.t.size
+    v_error = series["v_n"] - np.stack([e.true_v_n[:K] for e in episodes])
+    index = np.arange(K)[None, :]
+    moving = (index >= k[:, None] - 65) & (index < k[:, None] - 5)    # the last 60 s driving
     out = {"vs_truth": _stats(vs_truth), "vs_reference": _stats(vs_reference),
+           "velocity_error_rms_m_s": np.sqrt(np.nanmean(np.where(
+               moving[..., None], v_error ** 2, np.nan), axis=(0, 1))).tolist(),
            "diverged_fraction": float(run.diverged.mean()),
            "dkd_error_ppm": float(np.sqrt(np.mean(dkd_error ** 2)) * 1e6),
            "heading_convergence_s": float(np.mean(run.heading_convergence))}
@@ -384,7 +392,8 @@ def run_metrics(result: CampaignResult, run) -> dict:
 
 def paper000_summary(result: CampaignResult) -> dict:
     """{"fine": {FILTER: {"vs_truth": {"mean_arcmin", "std_arcmin", "rms_arcmin"} (pitch,
-    roll, heading at the stop), "vs_reference": {...}, "diverged_fraction",
+    roll, heading at the stop), "vs_reference": {...}, "velocity_error_rms_m_s" (E, N, U,
+    over the last 60 s of driving), "diverged_fraction",
     "dkd_error_ppm", "heading_convergence_s", "mounting_error_deg" [pitch, heading],
     "flagged_epochs", "slip_bursts_flagged"}}} for the coarse start, and the same under
     "fine_large" for the large-heading start; "coarse": the coarse stage's Euler errors."""
@@ -412,14 +421,16 @@ def format_tables(result: CampaignResult) -> str:
                   "static reference / the truth",
                   f"{'filter':8s}{'stat':6s}" + "".join(f"{'ref ' + a:>12s}" for a in ANGLES)
                   + "".join(f"{'true ' + a:>13s}" for a in ANGLES)
-                  + f"{'dK_D ppm':>10s}{'mount deg':>14s}{'flagged':>9s}{'div':>6s}"]
+                  + f"{'dK_D ppm':>10s}{'mount deg':>14s}{'v mm/s':>8s}{'flagged':>9s}"
+                  f"{'div':>6s}"]
         for name, s in summary[key].items():
             for stat in ("mean", "std"):
                 tail = ""
                 if stat == "mean":
                     mount = s.get("mounting_error_deg")
                     mount = "-" if mount is None else "/".join(f"{v:.2f}" for v in mount)
-                    tail = (f"{s['dkd_error_ppm']:10.0f}{mount:>14s}"
+                    v = 1000 * np.hypot(*s["velocity_error_rms_m_s"][:2])
+                    tail = (f"{s['dkd_error_ppm']:10.0f}{mount:>14s}{v:8.1f}"
                             f"{s['flagged_epochs']:9.1f}{s['diverged_fraction']:6.0%}")
                 lines.append(f"{name if stat == 'mean' else '':8s}{stat:6s}"
                              + "".join(f"{v:12.2f}" for v in s["vs_reference"][f"{stat}_arcmin"])
