@@ -203,3 +203,219 @@ def st_velocity_measurement(x: np.ndarray, v_ins: np.ndarray) -> np.ndarray:
     """h_v(x) (..., 3) = (I - C_p^n(phi)) v~ + C_p^n(phi) dv_ST: the INS velocity error a
     velocity fix sees (6.6); its Jacobian at phi = 0 is [[v~ x], I] (6.7)."""
     return st_to_classic(x, v_ins)[..., DV]
+
+
+# --- the GNSS-aided filter model of paper 004 ---------------------------------------------------
+VARIANTS = ("st", "st-linear", "classic")
+"""st: the transformed model (6.1, 6.4, 6.5) integrated by RK4, nonlinear measurement
+(STUKF, or any rule); st-linear: (6.7) with its H (STEKF); classic: (6.1, 6.2, 6.5) and
+the classic velocity error (the plain UKF, and the EKF linearising it at the estimate)."""
+
+
+@dataclass(frozen=True)
+class RotationVectorTuning:
+    """What the filter believes, SI: P0 sigmas (attitude (3,) rad as a rotation vector E,
+    N, U; velocity m/s; position m; gyro drift rad/s; accelerometer bias m/s^2), white
+    noise densities (gyro rad/sqrt(s), accelerometer m/s/sqrt(s)) and bias random walks
+    (rad/s/sqrt(s), m/s^2/sqrt(s); ALGORITHMS 6 caution: keep nabla's non-zero); GNSS
+    sigmas (horizontal and vertical position m, velocity m/s per axis)."""
+
+    attitude_sigma: tuple[float, float, float]
+    velocity_sigma: float
+    position_sigma: float
+    gyro_bias_sigma: float
+    accel_bias_sigma: float
+    gyro_noise_density: float
+    accel_noise_density: float
+    gyro_bias_walk: float
+    accel_bias_walk: float
+    gnss_position_sigma_h: float
+    gnss_position_sigma_v: float
+    gnss_velocity_sigma: float
+
+
+class RotationVectorGnssModel:
+    """Paper 004's fine alignment on B episodes (a ``FilterModel``): the 15-state
+    rotation-vector model in one of ``VARIANTS``, GNSS velocity and position (ENU, m/s and
+    m, at the antenna: the lever arm's attitude dependence is in h), the model's own
+    strapdown on bias-compensated increments; open loop while the heading sigma is above
+    feedback_below (rad; None: closed loop from the start), then the estimate is fed back
+    after every update (6.8) and the state reset."""
+
+    def __init__(self, inputs, tuning: RotationVectorTuning, variant: str = "st",
+                 feedback_below: float | None = None) -> None:
+        from estimators.model import StateLayout
+        from estimators.strapdown import AidedStrapdown
+        if variant not in VARIANTS:
+            raise ValueError(f"variant {variant!r}; valid: " + ", ".join(VARIANTS))
+        self.inputs, self.tuning, self.variant = inputs, tuning, variant
+        self.feedback_below = feedback_below
+        self.layout = StateLayout({"misalignment": PHI, "velocity": DV, "position": DP,
+                                   "gyro_bias": EPS, "accel_bias": NABLA})
+        B, K = inputs.dtheta.shape[:2]
+        self.batch, self.epochs, self.t = B, K, inputs.t
+        self.T = float(inputs.t[1] - inputs.t[0])
+        self.ins = AidedStrapdown(inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0,
+                                  inputs.h0, inputs.imu_dt)
+        from models.attitude import quat_to_dcm
+        self._C_b_p = np.empty((B, K + 1, 3, 3))
+        self._C_b_p[:, 0] = quat_to_dcm(self.ins.state.q_b_n)
+        self._rate = np.zeros((B, 3))
+        self._k = 0
+        self.feedback_count = np.zeros(B, int)
+
+    def series(self):
+        return {}
+
+    def initial(self):
+        tu, B = self.tuning, self.batch
+        from models.earth import radii
+        s = self.ins.state
+        R_M, R_N = radii(s.lat)
+        sig = np.zeros((B, N_STATES))
+        sig[:, PHI] = tu.attitude_sigma
+        sig[:, DV] = tu.velocity_sigma
+        sig[:, 6] = tu.position_sigma / (R_M + s.h)
+        sig[:, 7] = tu.position_sigma / ((R_N + s.h) * np.cos(s.lat))
+        sig[:, 8] = tu.position_sigma
+        sig[:, EPS] = tu.gyro_bias_sigma
+        sig[:, NABLA] = tu.accel_bias_sigma
+        return np.zeros((B, N_STATES)), sig[:, :, None] ** 2 * np.eye(N_STATES)
+
+    def _quantities(self, out, f_b, i: int) -> InsQuantities:
+        from models.attitude import quat_to_dcm
+        return InsQuantities(C_b_p=quat_to_dcm(out["q_b_n"][:, i])[:, None],
+                             f_b=f_b[:, None], v=out["v_n"][:, i][:, None],
+                             lat=out["lat"][:, i][:, None], lon=out["lon"][:, i][:, None],
+                             h=out["h"][:, i][:, None])
+
+    def transition(self, k, q_scale=(1.0, 1.0)):
+        from estimators.model import Transition
+        inp, dt, T = self.inputs, self.inputs.imu_dt, self.T
+        out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
+        S = dtheta.shape[1]
+        mid = S // 2
+        self._rate = dtheta[:, -max(1, int(round(0.1 / dt))):].mean(1) / dt
+        self._C_b_p[:, k + 1] = _dcm(out["q_b_n"][:, -1])
+        f = dv / dt
+        q0 = self._quantities(out, f[:, 0], 0)
+        qm = self._quantities(out, 0.5 * (f[:, mid - 1] + f[:, mid]), mid)
+        q1 = self._quantities(out, f[:, -1], S)
+        tu = self.tuning
+        qd = np.zeros(N_STATES)
+        qd[PHI] = tu.gyro_noise_density ** 2 * q_scale[0]
+        qd[DV] = tu.accel_noise_density ** 2 * q_scale[1]
+        qd[EPS] = tu.gyro_bias_walk ** 2
+        qd[NABLA] = tu.accel_bias_walk ** 2
+        Q = np.broadcast_to(np.diag(qd) * T, (self.batch, N_STATES, N_STATES)).copy()
+        if self.variant == "st-linear":
+            quantities = InsQuantities(C_b_p=qm.C_b_p[:, 0], f_b=qm.f_b[:, 0], v=qm.v[:, 0],
+                                       lat=qm.lat[:, 0], lon=qm.lon[:, 0], h=qm.h[:, 0])
+            FT = stekf_matrix(quantities) * T
+            Phi = np.eye(N_STATES) + FT + 0.5 * FT @ FT
+            return Transition(noise=Q, matrix=Phi)
+        derivative = st_derivative if self.variant == "st" else classic_derivative
+
+        def fn(x: np.ndarray) -> np.ndarray:
+            a = derivative(x, q0)
+            b = derivative(x + 0.5 * T * a, qm)
+            c = derivative(x + 0.5 * T * b, qm)
+            d = derivative(x + T * c, q1)
+            return x + T / 6.0 * (a + 2 * b + 2 * c + d)
+
+        return Transition(noise=Q, fn=fn)
+
+    def _metres(self, lat, h):
+        from models.earth import radii
+        R_M, R_N = radii(lat)
+        return np.stack([R_M + h, (R_N + h) * np.cos(lat), np.ones_like(lat)], -1)
+
+    def observation(self, k, r_scale=1.0):
+        from estimators.model import Observation
+        from models.earth import C_n_e
+        inp, tu = self.inputs, self.tuning
+        self._k = k + 1
+        s = self.ins.state
+        C_b_p = self._C_b_p[:, k + 1]
+        l = inp.lever_arm_b
+        w_ie = earth_rate_n(s.lat)
+        w_nb = self._rate - np.einsum("bji,bj->bi", C_b_p, w_ie + transport_rate_n(
+            s.lat, s.h, s.v_n))
+        lever_p = np.einsum("bij,bj->bi", C_b_p, l)                 # C_b^p l
+        lever_v = np.einsum("bij,bj->bi", C_b_p, np.cross(w_nb, l))  # C_b^p (w x l)
+        metres = self._metres(s.lat, s.h)
+        # z: INS antenna minus GNSS (ENU m/s, and m along E, N, U).
+        z = np.full((self.batch, 6), np.nan)
+        z[:, :3] = s.v_n + lever_v - inp.gps_v_n[:, k + 1]
+        dp = np.stack([s.lon - inp.gps_lon[:, k + 1], s.lat - inp.gps_lat[:, k + 1],
+                       s.h - inp.gps_h[:, k + 1]], -1)
+        z[:, 3:] = dp * metres[:, [1, 0, 2]] + lever_p
+        R = np.zeros((self.batch, 6, 6))
+        R[:, :3, :3] = np.eye(3) * tu.gnss_velocity_sigma ** 2
+        R[:, 3:, 3:] = np.diag([tu.gnss_position_sigma_h ** 2] * 2
+                               + [tu.gnss_position_sigma_v ** 2])
+        R = R * r_scale
+        v_ins = s.v_n
+        variant = self.variant
+        # E, N, U metres of dp = (dL, dlambda, dh): rows [0, Rn cos L, 0], [R_M + h, 0, 0].
+        D = np.zeros((self.batch, 3, 3))
+        D[:, 0, 1], D[:, 1, 0], D[:, 2, 2] = metres[:, 1], metres[:, 0], 1.0
+        if variant == "st-linear":
+            H = np.zeros((self.batch, 6, N_STATES))
+            H[:, :3, PHI] = skew(v_ins + lever_v)
+            H[:, :3, DV] = np.eye(3)
+            H[:, 3:, PHI] = skew(lever_p)
+            H[:, 3:, DP] = D
+            return Observation(noise=R, matrix=H, z=z, t=float(self.t[k + 1]))
+        Vb, Lv, Lp, Db = v_ins[:, None], lever_v[:, None], lever_p[:, None], D[:, None]
+
+        def fn(x: np.ndarray) -> np.ndarray:
+            C_p_n = rotvec_to_dcm(x[..., PHI])
+            turn = lambda a: a - np.einsum("...ij,...j->...i", C_p_n, a)  # noqa: E731
+            dv = st_to_classic(x, Vb)[..., DV] if variant == "st" else x[..., DV]
+            return np.concatenate([dv + turn(Lv), np.einsum("...ij,...j->...i", Db,
+                                                            x[..., DP]) + turn(Lp)], -1)
+
+        return Observation(noise=R, fn=fn, z=z, t=float(self.t[k + 1]))
+
+    def feedback(self, x, P, live):
+        """(6.8) for the episodes whose heading sigma is below feedback_below (all with
+        None): C_b^n <- exp([phi x]) C_b^p, v <- v~ - dv (the classic velocity error),
+        p <- p~ - dp, biases accumulated, the state reset (P kept: first order)."""
+        k = self._k
+        ready = live.copy()
+        if self.feedback_below is not None:
+            ready &= np.sqrt(np.maximum(P[:, 2, 2], 0.0)) < self.feedback_below
+        if not ready.any():
+            return x, P
+        x = x.copy()
+        b = np.flatnonzero(ready)
+        s = self.ins.state
+        dv = (st_to_classic(x[b], s.v_n[b])[:, DV] if self.variant != "classic"
+              else x[b, DV])
+        if self.variant == "st-linear":     # (6.8)'s small-angle form
+            dv = x[b, DV] + np.cross(s.v_n[b], x[b, PHI])
+        C_b_n = rotvec_to_dcm(x[b, PHI]) @ self._C_b_p[b, k]
+        from models.attitude import dcm_to_quat
+        s.q_b_n[b] = dcm_to_quat(C_b_n)
+        self._C_b_p[b, k] = C_b_n
+        s.v_n[b] -= dv
+        s.lat[b] -= x[b, 6]
+        s.lon[b] -= x[b, 7]
+        s.h[b] -= x[b, 8]
+        self.ins.gyro_bias[b] += x[b, EPS]
+        self.ins.accel_bias[b] += x[b, NABLA]
+        x[b] = 0.0
+        self.feedback_count[b] += 1
+        return x, P
+
+    def attitude(self, k, x):
+        return rotvec_to_dcm(x[:, PHI]) @ self._C_b_p[:, k]
+
+    def attitude_sigma(self, k, P):
+        return np.sqrt(np.maximum(np.diagonal(P[:, PHI, PHI], axis1=-2, axis2=-1), 0.0))
+
+
+def _dcm(q: np.ndarray) -> np.ndarray:
+    from models.attitude import quat_to_dcm
+    return quat_to_dcm(q)
