@@ -86,6 +86,7 @@ class AlignmentRun:
             raise RuntimeError("the fine alignment is finished")
         start = time.perf_counter()
         k, filt, model = self.k, self.filt, self.model
+        live_before = filt.live.copy()
         filt.predict(model.transition(k, q_scale))
         filt.update(model.observation(k, r_scale))
         width = filt.factors.shape[-1]
@@ -98,7 +99,7 @@ class AlignmentRun:
         self.factors[:, k] = np.nan
         self.factors[:, k, :width] = filt.factors
         if filt.innovation is not None:
-            live = filt.live
+            live = live_before            # the epoch an episode diverges at counts too
             e, S, valid = filt.predicted
             eye = np.eye(e.shape[-1])
             e = np.where(live[:, None] & valid, e, 0.0)

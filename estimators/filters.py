@@ -182,7 +182,8 @@ class GaussianFilter:
             P_pred = symmetric(adapted)
             P_pred = self._repair(P_pred, t)
             if not observation.linear:  # re-update with the adapted prediction
-                z_hat, P_zz, P_xz = self.rule.moments(observation, self.x, P_pred)
+                x_in, P_pred = self._harmless(self.x, P_pred)
+                z_hat, P_zz, P_xz = self.rule.moments(observation, x_in, P_pred)
                 innovation = _innovation(observation, z, z_hat, valid)
         # Missing components: zero rows of H / columns of P_xz, unit diagonal in S and
         # R, so that their gain columns are exactly zero.

@@ -201,7 +201,7 @@ def _body_integrals(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.
 def _wahba(beta: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, float]:
     """The rotation C minimising sum |beta_k - C alpha_k|^2 (SVD) and the RMS residual."""
     U, _, Vt = np.linalg.svd(beta.T @ alpha)
-    C = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    C = U @ np.diag([1.0, 1.0, 1.0 if np.linalg.det(U @ Vt) >= 0.0 else -1.0]) @ Vt
     return C, float(np.sqrt(np.mean(np.sum((beta - alpha @ C.T) ** 2, axis=-1))))
 
 
@@ -289,7 +289,7 @@ def odometer_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
         raise ValueError(f"the window ({M * dt:g} s) must hold >= 3 pair intervals")
     C_b_b0, alpha_all = _body_integrals(dtheta, dv)
     t = np.arange(M + 1) * dt
-    half = step // 2
+    half = max(1, step // 2)
     ahead = np.minimum(np.arange(M + 1) + half, M)
     behind = np.maximum(np.arange(M + 1) - half, 0)
     span = (ahead - behind) * dt

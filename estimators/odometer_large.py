@@ -62,6 +62,12 @@ class OdometerTuning:
     accel_noise_density: float
     measurement_sigma: float
     mounting_sigma: float | None = None
+    velocity_from_attitude: bool = False
+    """The INS's start velocity is the odometer's turned by the INS's own attitude, so its
+    error is (C_p^n(phi)^T - I) v, up to |v| sin(phi_U) horizontally: P0's horizontal
+    velocity sigma becomes sqrt(velocity_sigma^2 + (|v| sigma_U)^2). (A Gaussian with the
+    first-order correlation instead misleads the filters from a 30 deg prior: the
+    dependence is on a circle, not a line.)"""
 
 
 @dataclass
@@ -237,7 +243,13 @@ class OdometerLargeHeadingModel(FilterModel):
         sig[:, KD] = tu.scale_sigma
         if self.mounting:
             sig[:, MOUNT_PITCH:] = tu.mounting_sigma
-        return np.zeros((B, self.n)), sig[:, :, None] ** 2 * np.eye(self.n)
+        P = sig[:, :, None] ** 2 * np.eye(self.n)
+        if tu.velocity_from_attitude:
+            speed = np.linalg.norm(self.ins.state.v_n[:, :2], axis=-1)
+            extra = (speed * tu.attitude_sigma[2]) ** 2
+            P[:, 3, 3] += extra
+            P[:, 4, 4] += extra
+        return np.zeros((B, self.n)), P
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         inp, dt, T = self.inputs, self.inputs.imu_dt, self.T

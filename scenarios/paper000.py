@@ -212,8 +212,8 @@ class Paper000Experiment(Experiment):
 class Paper000Episode(PreparedEpisode):
     """One ring-road episode from the end of the coarse window (``PreparedEpisode``;
     C_s_b = the mounting, constant). t (K+1,) s; dtheta, dv (K, S, 3); distance (K, S) m
-    per IMU interval; coarse_C_b_n (3, 3) the coarse alignment's attitude at t[0]; v0 (3,)
-    the INS's start velocity (odometer, coarse attitude), m/s ENU; lat0, lon0, h0 the
+    per IMU interval; coarse_C_b_n (3, 3) the coarse alignment's attitude at t[0]; v0_body
+    (3,) the IMU's start velocity in its own frame (odometer and gyros), m/s; lat0, lon0, h0 the
     start position (known); k_stop: the epoch 5 s after the car stops (the last one if
     the run ends sooner); C_reference (3, 3) the static alignment over the still after
     the stop (the paper's reference; NaN if the run has less than 60 s of it); coarse_error (3,)
@@ -228,7 +228,7 @@ class Paper000Episode(PreparedEpisode):
     dv: np.ndarray
     distance: np.ndarray
     coarse_C_b_n: np.ndarray
-    v0: np.ndarray
+    v0_body: np.ndarray
     lat0: float
     lon0: float
     h0: float
@@ -241,7 +241,7 @@ class Paper000Episode(PreparedEpisode):
     slips: np.ndarray
     true_v_n: np.ndarray
 
-    _ARRAYS = ("t", "true_v_n", "dtheta", "dv", "distance", "coarse_C_b_n", "v0", "C_reference",
+    _ARRAYS = ("t", "true_v_n", "dtheta", "dv", "distance", "coarse_C_b_n", "v0_body", "C_reference",
                "coarse_error", "mounting", "lever_arm_b", "slips", "C_s_n_true",
                "C_b_n_true", "C_s_b", "gyro_bias", "accel_bias")
     _SCALARS = ("imu_dt", "lat0", "lon0", "h0", "odometer_scale_true", "lat", "h")
@@ -258,13 +258,13 @@ class Paper000Episode(PreparedEpisode):
 
 
 def _rear_path(truth, lever_b: np.ndarray, start: int, end: int) -> float:
-    """Length (m) of the path of the point -lever_b from the IMU (body frame) between
+    """Length (m) of the path of the point -lever_b from the IMU (chassis frame b) between
     IMU boundaries start and end."""
     R_M, R_N = radii(truth.lat[0])
     east = (truth.lon - truth.lon[0]) * (R_N + truth.h[0]) * np.cos(truth.lat[0])
     north = (truth.lat - truth.lat[0]) * (R_M + truth.h[0])
     site = np.stack([east, north, truth.h], -1)[start:end + 1]
-    point = site - np.einsum("kij,j->ki", quat_to_dcm(truth.q_s_n[start:end + 1]), lever_b)
+    point = site - np.einsum("kij,j->ki", quat_to_dcm(truth.q_b_n[start:end + 1]), lever_b)
     return float(np.sum(np.linalg.norm(np.diff(point, axis=0), axis=1)))
 
 
@@ -291,7 +291,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
     half = int(round(0.5 / dt))
     speed = (distance[i0 + half] - distance[i0 - half]) / (2 * half * dt)
     rate = episode.dtheta[i0 - half: i0 + half].sum(0) / (2 * half * dt)
-    v0 = C_coarse @ (np.array([0.0, speed, 0.0]) + np.cross(rate, lever_b))
+    v0_body = np.array([0.0, speed, 0.0]) + np.cross(rate, lever_b)
     # The stop and the paper's reference: static alignment over the still after it (a
     # run that ends sooner has none: NaN, and its "stop" is its last epoch).
     k_stop = min(int(np.searchsorted(truth.t[idx], motion.stop_time + 5.0)), epochs)
@@ -303,6 +303,10 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
                                               episode.dtheta[r0:].sum(0) / (n_ref * dt),
                                               float(truth.lat[r0]))
     drive = (i0, min(int(round(motion.stop_time / dt)), truth.t.size - 1))
+    # Distance the slip bursts added (the wheel spun, the car did not travel): not scale.
+    slipped = sum(extra for start, _, extra in odo.slips
+                  if truth.t[drive[0]] <= start <= truth.t[drive[1]]) * (
+        1.0 + float(episode.extra["odo_scale_error"]))
     C_s_n = quat_to_dcm(truth.q_s_n[idx])
     C_b_n = quat_to_dcm(truth.q_b_n[idx])
     return Paper000Episode(
@@ -310,10 +314,10 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
         dtheta=episode.dtheta[i0: idx[-1]].reshape(epochs, per, 3),
         dv=episode.dv[i0: idx[-1]].reshape(epochs, per, 3),
         distance=increments[i0: idx[-1]].reshape(epochs, per), coarse_C_b_n=C_coarse,
-        v0=v0, lat0=float(truth.lat[i0]), lon0=float(truth.lon[i0]), h0=float(truth.h[i0]),
+        v0_body=v0_body, lat0=float(truth.lat[i0]), lon0=float(truth.lon[i0]), h0=float(truth.h[i0]),
         k_stop=k_stop, C_reference=C_reference,
         coarse_error=true_state(C_s_n[0], C_coarse),
-        odometer_scale_true=float((distance[drive[1]] - distance[drive[0]])
+        odometer_scale_true=float((distance[drive[1]] - distance[drive[0]] - slipped)
                                   / _rear_path(truth, lever_b, *drive) - 1.0),
         mounting=np.array([odo.mounting_pitch, odo.mounting_heading]), lever_arm_b=lever_b,
         slips=np.array(odo.slips, dtype=float).reshape(-1, 3), true_v_n=truth.v_n[idx],
@@ -325,15 +329,18 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
 
 def model_inputs(episodes: list[Paper000Episode], start_error: np.ndarray) -> OdometerInputs:
     """The model's inputs; each INS starts from the true attitude turned by its Euler error
-    (E, N, U, rad: C_b^n' = C_p_n(phi)^T C_b^n), at the coarse stage's velocity and the
-    known start position."""
+    (E, N, U, rad: C_b^n' = C_p_n(phi)^T C_b^n), at the odometer's velocity turned by the
+    coarse attitude (whichever the start; its error, |v| times the coarse heading error,
+    is outside P0's velocity sigma of 0.1 m/s when that error is degrees: an open point)
+    and the known start position."""
     parts = []
     for e, phi in zip(episodes, start_error):
         C0 = np.swapaxes(C_p_n(phi), -1, -2) @ e.C_s_n_true[0]
         parts.append(OdometerInputs(
             t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
             distance=e.distance[None], C_m_b=np.eye(3)[None], lever_arm_b=e.lever_arm_b[None],
-            q_b_n0=dcm_to_quat(C0)[None], v_n0=e.v0[None], lat0=np.array([e.lat0]),
+            q_b_n0=dcm_to_quat(C0)[None], v_n0=(e.coarse_C_b_n @ e.v0_body)[None],
+            lat0=np.array([e.lat0]),
             lon0=np.array([e.lon0]), h0=np.array([e.h0])))
     return stack_episodes(parts, shared=("t", "imu_dt"))
 
@@ -362,8 +369,9 @@ def run_metrics(result: CampaignResult, run) -> dict:
     dkd_error = scale * (1.0 + true) - 1.0                            # relative
     K = run.result.t.size
     v_error = series["v_n"] - np.stack([e.true_v_n[:K] for e in episodes])
-    index = np.arange(K)[None, :]
-    moving = (index >= k[:, None] - 65) & (index < k[:, None] - 5)    # the last 60 s driving
+    t = episodes[0].t[:K]
+    t_stop = t[np.minimum(k, K - 1)][:, None] - 5.0         # the stop command (k: 5 s after)
+    moving = (t[None] >= t_stop - 60.0) & (t[None] < t_stop)          # the last 60 s driving
     out = {"vs_truth": _stats(vs_truth), "vs_reference": _stats(vs_reference),
            "velocity_error_rms_m_s": np.sqrt(np.nanmean(np.where(
                moving[..., None], v_error ** 2, np.nan), axis=(0, 1))).tolist(),

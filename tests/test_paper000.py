@@ -240,6 +240,7 @@ def test_slip_burst_is_flagged_by_every_filter_which_recovers(slip_campaign):
         assert s["slip_bursts_flagged"] == 1.0, name
     for name in ("sgkf", "rdghkf", "ekf"):
         assert summary[name]["diverged_fraction"] == 0.0, name
+        assert summary[name]["flagged_epochs"] < 10, name    # of 195: not flag-everything
     for run in slip_campaign.runs:
         assert all(bool(r) == bool(d) for r, d in zip(run.reason, run.diverged))
     # From ~9 deg after the coarse stage to tens of arcminutes in 150 s of driving.
@@ -248,15 +249,14 @@ def test_slip_burst_is_flagged_by_every_filter_which_recovers(slip_campaign):
 
 
 def test_stop_reference_is_the_static_alignment_after_the_stop(slip_campaign):
-    """vs_reference - vs_truth is the reference's own error, common to every filter, and
-    that error is the static alignment's physics: level ~ accelerometer bias / g, heading
-    ~ east drift / (Omega cos L) (minutes of arc for this FOG)."""
+    """vs_reference - vs_truth is the reference's own error (the same for every filter by
+    construction), and that error is the static alignment's physics: level ~
+    accelerometer bias / g, heading ~ east drift / (Omega cos L) (minutes of arc for
+    this FOG)."""
     from models.earth import OMEGA_IE
     summary = slip_campaign.summary()["fine"]
     offsets = [np.subtract(s["vs_reference"]["mean_arcmin"], s["vs_truth"]["mean_arcmin"])
                for s in summary.values()]
-    for other in offsets[1:]:
-        np.testing.assert_allclose(other, offsets[0], atol=0.05)
     lat = 40.0 * deg
     bound = (0.02 * deg / 3600) / (OMEGA_IE * np.cos(lat)) / arcmin   # 1 sigma, arcmin
     assert abs(offsets[0][2]) < 4 * bound + 2.0
