@@ -313,6 +313,12 @@ FILTERS: dict[str, FilterEntry] = {
     "sgkf": FilterEntry(lambda: ReducedGaussHermiteRule(7), _strong_tracking,
                         "reduced-dimension GH with the strong-tracking fading factor "
                         "(000's SGKF; rho 0.95, beta 1)", True),
+    "stukf": FilterEntry(lambda: UnscentedRule(kappa=None), NoAdaptation,
+                         "state-transformation UKF on the rotation-vector model (004; kappa = "
+                         "3 - n keeps the points within sqrt(3) sigma, ALGORITHMS 6 caution)",
+                         model="st"),
+    "stekf": FilterEntry(LinearizationRule, NoAdaptation,
+                         "state-transformation EKF (004; ALGORITHMS 6.7)", model="st-linear"),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
