@@ -53,7 +53,8 @@ def test_odometer_aided_alignment_while_driving(ring):
     compensated (without: 5.5 deg of heading)."""
     config, dt = ring.config, ring.config.imu_interval
     odo, motion = config.odometer, config.motion
-    C_m_b = euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
+    C_m_b = (euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
+             if nominal_mount else np.eye(3))
     lever = C_m_b @ np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
     i0, i1 = int(round(20.0 / dt)), int(round(140.0 / dt))
     C_true = quat_to_dcm(ring.truth.q_s_n[i1])
@@ -71,23 +72,28 @@ def test_odometer_aided_alignment_while_driving(ring):
 
 
 # --- the model against the strapdown ---------------------------------------------------------
-def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = True):
+def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = True,
+                    nominal_mount: bool = True, eps=np.zeros(3), nabla=np.zeros(3)):
     """The 16/18-state model on the ideal ring, its INS started from the truth turned by
-    the Euler error phi0 (rad), the true mounting given as nominal."""
+    the Euler error phi0 (rad); the true mounting given as nominal (or the identity,
+    nominal_mount False: the mounting states carry it); constant drift eps (rad/s) and
+    bias nabla (m/s^2) added to the increments."""
     from estimators.euler_large import C_p_n
     from estimators.odometer_large import (OdometerInputs, OdometerLargeHeadingModel,
                                            OdometerTuning)
     from models.attitude import dcm_to_quat
     config, tr, dt = ring.config, ring.truth, ring.config.imu_interval
     odo, motion = config.odometer, config.motion
-    C_m_b = euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
+    C_m_b = (euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
+             if nominal_mount else np.eye(3))
     lever = C_m_b @ np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
     i0, S = int(round(start / dt)), int(round(1.0 / dt))
     sl = slice(i0, i0 + seconds * S)
     C0 = C_p_n(np.asarray(phi0)).T @ quat_to_dcm(tr.q_s_n[i0])
     inputs = OdometerInputs(
-        t=np.arange(seconds + 1.0), imu_dt=dt, dtheta=ring.dtheta[sl].reshape(1, seconds, S, 3),
-        dv=ring.dv[sl].reshape(1, seconds, S, 3),
+        t=np.arange(seconds + 1.0), imu_dt=dt,
+        dtheta=(ring.dtheta[sl] + eps * dt).reshape(1, seconds, S, 3),
+        dv=(ring.dv[sl] + nabla * dt).reshape(1, seconds, S, 3),
         distance=np.diff(ring.extra["odo_distance"])[sl].reshape(1, seconds, S),
         C_m_b=C_m_b[None], lever_arm_b=lever[None], q_b_n0=dcm_to_quat(C0)[None],
         v_n0=tr.v_n[i0][None], lat0=tr.lat[i0:i0 + 1], lon0=tr.lon[i0:i0 + 1],
@@ -99,16 +105,29 @@ def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = Tru
     return OdometerLargeHeadingModel(inputs, tuning), i0, S
 
 
-@pytest.mark.parametrize("heading_deg", [2.0, 30.0, 80.0])
-def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, heading_deg):
+CASES = {"2 deg": (2.0, True, False), "30 deg": (30.0, True, False),
+         "80 deg": (80.0, True, False),
+         "30 deg, mounting and sensor errors in the state": (30.0, False, True)}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
     """Ideal sensors, the INS open loop from a heading error of up to 80 deg: the model's
     one-second map carries the true error state to the next epoch (Euler errors to 0.01
     arcsec, velocity to 1e-4 relative), and the measurement model explains the INS - odometer
     increment to 1.5 cm (the rear tyres' slip on the ring) while z itself is decimetres
-    to metres; dK_D is the rolling radius's own (the odometer counts 0.17 % long)."""
+    to metres; dK_D is the rolling radius's own (the odometer counts 0.17 % long). In the
+    last case the filter is told the identity mounting (the 0.5 deg pitch and heading are
+    in the state) and the IMU has a 2 deg/h drift and a 1 mg bias (in the state too): the
+    mounting, drift and bias columns are exercised."""
+    heading_deg, nominal, sensor_errors = CASES[case]
+    eps = np.array([1e-5, -0.7e-5, 0.5e-5]) if sensor_errors else np.zeros(3)
+    nabla = np.array([1e-2, -0.5e-2, 0.8e-2]) if sensor_errors else np.zeros(3)
     from estimators.euler_large import true_state
     from scenarios.paper000 import _rear_path
-    model, i0, S = _model_on_truth(ring, 40.0, 15, [0.0, 0.0, heading_deg * deg])
+    model, i0, S = _model_on_truth(ring, 40.0, 15, [0.0, 0.0, heading_deg * deg],
+                                   nominal_mount=nominal, eps=eps, nabla=nabla)
+    odo = ring.config.odometer
     tr = ring.truth
     motion = ring.config.motion
     lever = np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
@@ -123,6 +142,9 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, headin
         x[3:6] = s.v_n[0] - tr.v_n[i]
         x[6:9] = [s.lat[0] - tr.lat[i], s.lon[0] - tr.lon[i], s.h[0] - tr.h[i]]
         x[15] = odo_scale - 1.0
+        x[9:12], x[12:15] = eps, nabla
+        if not nominal:
+            x[16:18] = [odo.mounting_pitch, odo.mounting_heading]
         return x
 
     x = state(0)
