@@ -53,8 +53,7 @@ def test_odometer_aided_alignment_while_driving(ring):
     compensated (without: 5.5 deg of heading)."""
     config, dt = ring.config, ring.config.imu_interval
     odo, motion = config.odometer, config.motion
-    C_m_b = (euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
-             if nominal_mount else np.eye(3))
+    C_m_b = euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
     lever = C_m_b @ np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
     i0, i1 = int(round(20.0 / dt)), int(round(140.0 / dt))
     C_true = quat_to_dcm(ring.truth.q_s_n[i1])
