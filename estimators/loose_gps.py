@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
-from estimators.strapdown import AidedStrapdown
+from estimators.strapdown import AidedInsInputs
 from models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
 from models.earth import (C_n_e, OMEGA_IE, ecef_to_geodetic, geodetic_to_ecef,
                           normal_gravity)
@@ -75,30 +75,17 @@ class LooseTuning:
 
 
 @dataclass
-class GpsInsInputs:
-    """Everything the model reads, for B episodes and K epochs of S IMU intervals.
+class GpsInsInputs(AidedInsInputs):
+    """``AidedInsInputs`` and the GPS fixes at the epoch boundaries: gps_lat, gps_lon
+    (B, K+1) rad, gps_h m, gps_v_n (B, K+1, 3) m/s ENU, gps_heading_sigma (B, K+1) rad,
+    NaN where there is no fix; lever_arm_b (B, 3) m, IMU to antenna (body frame)."""
 
-    t (K+1,) s, epoch boundaries; imu_dt s; dtheta, dv (B, K, S, 3) raw increments
-    (rad, m/s, body frame); GPS fixes at the boundaries: gps_lat, gps_lon (B, K+1) rad,
-    gps_h m, gps_v_n (B, K+1, 3) m/s ENU, gps_heading_sigma (B, K+1) rad, NaN where
-    there is no fix; lever_arm_b (B, 3) m, IMU to antenna; the INS start: q_b_n0 (B, 4),
-    v_n0 (B, 3), lat0, lon0, h0 (B,)."""
-
-    t: np.ndarray
-    imu_dt: float
-    dtheta: np.ndarray
-    dv: np.ndarray
     gps_lat: np.ndarray
     gps_lon: np.ndarray
     gps_h: np.ndarray
     gps_v_n: np.ndarray
     gps_heading_sigma: np.ndarray
     lever_arm_b: np.ndarray
-    q_b_n0: np.ndarray
-    v_n0: np.ndarray
-    lat0: np.ndarray
-    lon0: np.ndarray
-    h0: np.ndarray
 
 
 def heading_cw(C_b_n: np.ndarray) -> np.ndarray:
@@ -146,8 +133,7 @@ class LooselyCoupledModel(FilterModel):
         B, K, S = inputs.dtheta.shape[:3]
         self.batch, self.epochs, self.t = B, K, inputs.t
         self.step = float(inputs.t[1] - inputs.t[0])
-        self.ins = AidedStrapdown(inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0,
-                                  inputs.h0, inputs.imu_dt)
+        self.ins = inputs.strapdown()
         self._omega_ib_b = np.zeros((B, 3))
         self._series = {"lat": np.full((B, K + 1), np.nan), "lon": np.full((B, K + 1), np.nan),
                         "h": np.full((B, K + 1), np.nan),

@@ -26,9 +26,10 @@ import numpy as np
 
 from estimators.euler_large import C_p_n, reset_jacobian
 from estimators.model import FilterModel, Observation, StateLayout, Transition
-from estimators.strapdown import AidedStrapdown
+from estimators.strapdown import AidedInsInputs
 from models.attitude import dcm_to_quat, quat_to_dcm, skew
-from models.earth import OMEGA_IE, earth_rate_n, radii, transport_rate_n
+from models.earth import (OMEGA_IE, earth_rate_n, metres_per_geodetic, radii,
+                          transport_rate_n)
 
 LAYOUT = StateLayout({"misalignment": slice(0, 3), "velocity": slice(3, 6),
                       "position": slice(6, 9), "gyro_bias": slice(9, 12),
@@ -71,25 +72,15 @@ class OdometerTuning:
 
 
 @dataclass
-class OdometerInputs:
-    """B episodes, K epochs of S IMU intervals: t (K+1,) s; imu_dt s; dtheta, dv
-    (B, K, S, 3) raw increments (rad, m/s, IMU frame); distance (B, K, S) m, the
-    odometer's distance over each IMU interval; C_m_b (B, 3, 3) the nominal odometer
-    mounting (vehicle axes to IMU); lever_arm_b (B, 3) m, the IMU from the odometer's
-    axle centre, IMU frame; the INS start q_b_n0 (B, 4), v_n0 (B, 3), lat0, lon0, h0."""
+class OdometerInputs(AidedInsInputs):
+    """``AidedInsInputs`` and the odometer: distance (B, K, S) m over each IMU interval;
+    C_m_b (B, 3, 3) the nominal odometer mounting (vehicle axes to IMU); lever_arm_b
+    (B, 3) m, the IMU from the odometer's axle centre, in the vehicle axes turned by
+    C_m_b."""
 
-    t: np.ndarray
-    imu_dt: float
-    dtheta: np.ndarray
-    dv: np.ndarray
     distance: np.ndarray
     C_m_b: np.ndarray
     lever_arm_b: np.ndarray
-    q_b_n0: np.ndarray
-    v_n0: np.ndarray
-    lat0: np.ndarray
-    lon0: np.ndarray
-    h0: np.ndarray
 
 
 def _cz(c: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -210,8 +201,7 @@ class OdometerLargeHeadingModel(FilterModel):
         B, K, S = inputs.dtheta.shape[:3]
         self.batch, self.epochs, self.t = B, K, inputs.t
         self.T = float(inputs.t[1] - inputs.t[0])
-        self.ins = AidedStrapdown(inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0,
-                                  inputs.h0, inputs.imu_dt)
+        self.ins = inputs.strapdown()
         self.scale = np.ones(B)
         self.mount = np.zeros((B, 2))          # accumulated mounting pitch, heading (rad)
         self.feedback_count = np.zeros(B, int)
@@ -230,14 +220,11 @@ class OdometerLargeHeadingModel(FilterModel):
 
     def initial(self):
         tu, B = self.tuning, self.batch
-        R_M, R_N = radii(self.ins.state.lat)
-        h = self.ins.state.h
         sig = np.zeros((B, self.n))
         sig[:, PHI] = tu.attitude_sigma
         sig[:, DV] = tu.velocity_sigma
-        sig[:, 6] = tu.position_sigma / (R_M + h)
-        sig[:, 7] = tu.position_sigma / ((R_N + h) * np.cos(self.ins.state.lat))
-        sig[:, 8] = tu.position_sigma
+        sig[:, DP] = tu.position_sigma / metres_per_geodetic(self.ins.state.lat,
+                                                            self.ins.state.h)
         sig[:, EPS] = tu.gyro_bias_sigma
         sig[:, NABLA] = tu.accel_bias_sigma
         sig[:, KD] = tu.scale_sigma

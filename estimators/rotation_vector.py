@@ -19,8 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.attitude import rotvec_to_dcm, skew
-from models.earth import earth_rate_n, gravity_n, radii, transport_rate_n
+from estimators.model import FilterModel, Observation, StateLayout, Transition
+from estimators.loose_gps import GpsInsInputs
+from models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
+from models.earth import (earth_rate_n, gravity_n, metres_per_geodetic, radii,
+                          transport_rate_n)
 
 PHI, DV, DP, EPS, NABLA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12),
                            slice(12, 15))
@@ -234,18 +237,16 @@ class RotationVectorTuning:
     gnss_velocity_sigma: float
 
 
-class RotationVectorGnssModel:
-    """Paper 004's fine alignment on B episodes (a ``FilterModel``): the 15-state
+class RotationVectorGnssModel(FilterModel):
+    """Paper 004's fine alignment on B episodes: the 15-state
     rotation-vector model in one of ``VARIANTS``, GNSS velocity and position (ENU, m/s and
     m, at the antenna: the lever arm's attitude dependence is in h), the model's own
     strapdown on bias-compensated increments; open loop while the heading sigma is above
     feedback_below (rad; None: closed loop from the start), then the estimate is fed back
     after every update (6.8) and the state reset."""
 
-    def __init__(self, inputs, tuning: RotationVectorTuning, variant: str = "st",
+    def __init__(self, inputs: GpsInsInputs, tuning: RotationVectorTuning, variant: str = "st",
                  feedback_below: float | None = None) -> None:
-        from estimators.model import StateLayout
-        from estimators.strapdown import AidedStrapdown
         if variant not in VARIANTS:
             raise ValueError(f"variant {variant!r}; valid: " + ", ".join(VARIANTS))
         self.inputs, self.tuning, self.variant = inputs, tuning, variant
@@ -255,48 +256,37 @@ class RotationVectorGnssModel:
         B, K = inputs.dtheta.shape[:2]
         self.batch, self.epochs, self.t = B, K, inputs.t
         self.T = float(inputs.t[1] - inputs.t[0])
-        self.ins = AidedStrapdown(inputs.q_b_n0, inputs.v_n0, inputs.lat0, inputs.lon0,
-                                  inputs.h0, inputs.imu_dt)
-        from models.attitude import quat_to_dcm
+        self.ins = inputs.strapdown()
         self._C_b_p = np.empty((B, K + 1, 3, 3))
         self._C_b_p[:, 0] = quat_to_dcm(self.ins.state.q_b_n)
         self._rate = np.zeros((B, 3))
         self._k = 0
         self.feedback_count = np.zeros(B, int)
 
-    def series(self):
-        return {}
-
     def initial(self):
         tu, B = self.tuning, self.batch
-        from models.earth import radii
         s = self.ins.state
-        R_M, R_N = radii(s.lat)
         sig = np.zeros((B, N_STATES))
         sig[:, PHI] = tu.attitude_sigma
         sig[:, DV] = tu.velocity_sigma
-        sig[:, 6] = tu.position_sigma / (R_M + s.h)
-        sig[:, 7] = tu.position_sigma / ((R_N + s.h) * np.cos(s.lat))
-        sig[:, 8] = tu.position_sigma
+        sig[:, DP] = tu.position_sigma / metres_per_geodetic(s.lat, s.h)
         sig[:, EPS] = tu.gyro_bias_sigma
         sig[:, NABLA] = tu.accel_bias_sigma
         return np.zeros((B, N_STATES)), sig[:, :, None] ** 2 * np.eye(N_STATES)
 
     def _quantities(self, out, f_b, i: int) -> InsQuantities:
-        from models.attitude import quat_to_dcm
         return InsQuantities(C_b_p=quat_to_dcm(out["q_b_n"][:, i])[:, None],
                              f_b=f_b[:, None], v=out["v_n"][:, i][:, None],
                              lat=out["lat"][:, i][:, None], lon=out["lon"][:, i][:, None],
                              h=out["h"][:, i][:, None])
 
     def transition(self, k, q_scale=(1.0, 1.0)):
-        from estimators.model import Transition
         inp, dt, T = self.inputs, self.inputs.imu_dt, self.T
         out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
         S = dtheta.shape[1]
         mid = S // 2
         self._rate = dtheta[:, -max(1, int(round(0.1 / dt))):].mean(1) / dt
-        self._C_b_p[:, k + 1] = _dcm(out["q_b_n"][:, -1])
+        self._C_b_p[:, k + 1] = quat_to_dcm(out["q_b_n"][:, -1])
         f = dv / dt
         q0 = self._quantities(out, f[:, 0], 0)
         qm = self._quantities(out, 0.5 * (f[:, mid - 1] + f[:, mid]), mid)
@@ -325,14 +315,7 @@ class RotationVectorGnssModel:
 
         return Transition(noise=Q, fn=fn)
 
-    def _metres(self, lat, h):
-        from models.earth import radii
-        R_M, R_N = radii(lat)
-        return np.stack([R_M + h, (R_N + h) * np.cos(lat), np.ones_like(lat)], -1)
-
     def observation(self, k, r_scale=1.0):
-        from estimators.model import Observation
-        from models.earth import C_n_e
         inp, tu = self.inputs, self.tuning
         self._k = k + 1
         s = self.ins.state
@@ -343,7 +326,7 @@ class RotationVectorGnssModel:
             s.lat, s.h, s.v_n))
         lever_p = np.einsum("bij,bj->bi", C_b_p, l)                 # C_b^p l
         lever_v = np.einsum("bij,bj->bi", C_b_p, np.cross(w_nb, l))  # C_b^p (w x l)
-        metres = self._metres(s.lat, s.h)
+        metres = metres_per_geodetic(s.lat, s.h)
         # z: INS antenna minus GNSS (ENU m/s, and m along E, N, U).
         z = np.full((self.batch, 6), np.nan)
         z[:, :3] = s.v_n + lever_v - inp.gps_v_n[:, k + 1]
@@ -396,7 +379,6 @@ class RotationVectorGnssModel:
         if self.variant == "st-linear":     # (6.8)'s small-angle form
             dv = x[b, DV] + np.cross(s.v_n[b], x[b, PHI])
         C_b_n = rotvec_to_dcm(x[b, PHI]) @ self._C_b_p[b, k]
-        from models.attitude import dcm_to_quat
         s.q_b_n[b] = dcm_to_quat(C_b_n)
         self._C_b_p[b, k] = C_b_n
         s.v_n[b] -= dv
@@ -415,7 +397,3 @@ class RotationVectorGnssModel:
     def attitude_sigma(self, k, P):
         return np.sqrt(np.maximum(np.diagonal(P[:, PHI, PHI], axis1=-2, axis2=-1), 0.0))
 
-
-def _dcm(q: np.ndarray) -> np.ndarray:
-    from models.attitude import quat_to_dcm
-    return quat_to_dcm(q)

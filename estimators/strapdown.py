@@ -226,6 +226,29 @@ class Strapdown:
         return self.state
 
 
+@dataclass
+class AidedInsInputs:
+    """What every aided fine-alignment model reads, for B episodes and K epochs of S IMU
+    intervals: t (K+1,) s, the epoch boundaries; imu_dt s; dtheta, dv (B, K, S, 3) raw
+    increments (rad, m/s, IMU frame); the INS start q_b_n0 (B, 4), v_n0 (B, 3) m/s ENU,
+    lat0, lon0 (B,) rad, h0 (B,) m. Models add their aiding sensor's fields."""
+
+    t: np.ndarray
+    imu_dt: float
+    dtheta: np.ndarray
+    dv: np.ndarray
+    q_b_n0: np.ndarray
+    v_n0: np.ndarray
+    lat0: np.ndarray
+    lon0: np.ndarray
+    h0: np.ndarray
+
+    def strapdown(self) -> "AidedStrapdown":
+        """The INS these inputs start."""
+        return AidedStrapdown(self.q_b_n0, self.v_n0, self.lat0, self.lon0, self.h0,
+                              self.imu_dt)
+
+
 class AidedStrapdown(Strapdown):
     """The strapdown of an aided, closed-loop filter model: B episodes started from
     arrays, the increments compensated with the accumulated sensor-bias estimates

@@ -36,6 +36,14 @@ def radii(lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return A * (1.0 - E2) / w ** 3, A / w
 
 
+def metres_per_geodetic(lat: np.ndarray, h: np.ndarray | float = 0.0) -> np.ndarray:
+    """(..., 3): the north, east and up metres per unit change of (lat rad, lon rad, h m):
+    [R_M + h, (R_N + h) cos(lat), 1]."""
+    R_M, R_N = radii(lat)
+    h = np.asarray(h, dtype=float)
+    return np.stack([R_M + h, (R_N + h) * np.cos(lat), np.ones_like(R_M + h)], -1)
+
+
 def normal_gravity(lat: np.ndarray, h: np.ndarray | float = 0.0) -> np.ndarray:
     """Magnitude of WGS-84 normal gravity (m/s^2) at latitude (rad) and height h (m).
 
