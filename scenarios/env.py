@@ -263,11 +263,12 @@ class AlignmentEnv(gym.Env):
                 world.data.qpos[world._gimbal_qpos] = [
                     np.arctan2(-C_s_b[0, 1], C_s_b[1, 1]), np.arctan2(C_s_b[2, 1], C_s_b[2, 2])]
             if hasattr(self._episode, "true_lat"):   # a vehicle: where it is on the plane
-                from models.earth import radii
-                R_M, R_N = radii(self.config.latitude)
-                world.data.qpos[0] = ((self._episode.true_lon[k] - self.config.longitude)
-                                      * R_N * np.cos(self.config.latitude))
-                world.data.qpos[1] = (self._episode.true_lat[k] - self.config.latitude) * R_M
+                from models.earth import TangentPlane
+                plane = TangentPlane(self.config.latitude, self.config.longitude,
+                                     self.config.height)
+                e = self._episode
+                world.data.qpos[0:2] = plane.from_geodetic(e.true_lat[k], e.true_lon[k],
+                                                           e.true_h[k])[:2]
         mujoco.mj_forward(world.model, world.data)
         self._camera.lookat[:] = world.data.xpos[world.model.body("carrier").id]
         self._renderer.update_scene(world.data, self._camera)

@@ -26,7 +26,7 @@ from estimators.model import stack_episodes, wrap_angle
 from estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
                                        OdometerLargeHeadingModel, OdometerTuning)
 from models.attitude import dcm_to_quat, quat_to_dcm
-from models.earth import radii
+from models.earth import TangentPlane
 from models.units import arcmin, deg
 from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode
 from scenarios.config import ConfigError, ScenarioConfig
@@ -260,10 +260,9 @@ class Paper000Episode(PreparedEpisode):
 def _rear_path(truth, lever_b: np.ndarray, start: int, end: int) -> float:
     """Length (m) of the path of the point -lever_b from the IMU (chassis frame b) between
     IMU boundaries start and end."""
-    R_M, R_N = radii(truth.lat[0])
-    east = (truth.lon - truth.lon[0]) * (R_N + truth.h[0]) * np.cos(truth.lat[0])
-    north = (truth.lat - truth.lat[0]) * (R_M + truth.h[0])
-    site = np.stack([east, north, truth.h], -1)[start:end + 1]
+    plane = TangentPlane(truth.lat[0], truth.lon[0], truth.h[0])
+    site = plane.from_geodetic(truth.lat[start:end + 1], truth.lon[start:end + 1],
+                               truth.h[start:end + 1])
     point = site - np.einsum("kij,j->ki", quat_to_dcm(truth.q_b_n[start:end + 1]), lever_b)
     return float(np.sum(np.linalg.norm(np.diff(point, axis=0), axis=1)))
 

@@ -131,7 +131,7 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
     motion = ring.config.motion
     lever = np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
     counted = ring.extra["odo_distance"][i0 + 15 * S] - ring.extra["odo_distance"][i0]
-    odo_scale = _rear_path(tr, model.inputs.lever_arm_b[0], i0, i0 + 15 * S) / counted
+    odo_scale = _rear_path(tr, lever, i0, i0 + 15 * S) / counted
 
     def state(k):
         i = i0 + k * S
