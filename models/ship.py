@@ -10,13 +10,14 @@ the sway centre on a gimbal: outer axis body z, inner axis (rotated) x, so
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from models.attitude import euler_to_quat
+from models.indexer import IndexerSpec, cached_indexer
 from models.units import deg
-from models.world import IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld
+from models.world import ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,10 @@ class ShipSwayMotion(GimbalRates):
 
     Each attitude channel is ``mean + amplitude cos(2 pi t / period + phase)``.
     Linear sway amplitudes, periods and phases are per plane axis (E, N, U).
+    indexer: a single-axis azimuth indexer (``models.indexer``) on the outer gimbal axis
+    instead of the constant-rate double-axis rotation (both rates 0 then);
+    antenna_b: the GNSS antenna from the sway centre (R, F, U), m (None: at the IMU);
+    hull_size: the hull's beam, length and depth, m (visual only).
     """
 
     yaw_mean: float = 30 * deg
@@ -43,6 +48,41 @@ class ShipSwayMotion(GimbalRates):
     lever_arm_b: tuple[float, float, float] = (10.0, 30.0, 10.0)
     gimbal_outer_rate: float = 6 * deg
     gimbal_inner_rate: float = 18 * deg
+    indexer: IndexerSpec | None = None
+    antenna_b: tuple[float, float, float] | None = None
+    hull_size: tuple[float, float, float] = (18.0, 90.0, 8.0)
+
+    def __post_init__(self) -> None:
+        if self.indexer is not None and (self.gimbal_outer_rate or self.gimbal_inner_rate):
+            raise ValueError("motion: with an [indexer] the gimbal rates "
+                             "(gimbal_outer_rate_deg_s, gimbal_inner_rate_deg_s) must be 0")
+
+    @property
+    def has_gimbal(self) -> bool:
+        return self.indexer is not None or GimbalRates.has_gimbal.fget(self)
+
+    def hull_yaw_accel(self, t: np.ndarray) -> np.ndarray:
+        """The hull's angular acceleration about its z axis (N,) rad/s^2 (what a rotor on
+        the indexer axis is excited by)."""
+        return self.hull_angular_rate(np.asarray(t, dtype=float))[1][:, 2]
+
+    def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Gimbal angles (rad), rates (rad/s) and accelerations (rad/s^2), (N, 2) each
+        (outer, inner), at times t (N,) s: the indexer servo's simulated motion (run once
+        per process over [0, max t]) or the constant rates."""
+        t = np.asarray(t, dtype=float)
+        zeros = np.zeros((t.size, 2))
+        if self.indexer is None:
+            rates = np.array([self.gimbal_outer_rate, self.gimbal_inner_rate])
+            return self.gimbal_angles(t), zeros + rates, zeros
+        # The servo is excited by the hull's turning only: one run serves every linear phase.
+        hull = replace(self, linear_phase=(0.0, 0.0, 0.0))
+        servo = cached_indexer(self.indexer, float(t.max()), hull)
+        angle, rate, accel = servo.state(t)
+        out = [zeros.copy() for _ in range(3)]
+        for column, value in zip(out, (angle, rate, accel)):
+            column[:, 0] = value
+        return tuple(out)
 
     def euler(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hull Euler angles [pitch, roll, yaw], their first and second derivatives; (N, 3)."""
@@ -87,15 +127,24 @@ class ShipSwayMotion(GimbalRates):
         return A * np.sin(arg), A * w * np.cos(arg), -A * w * w * np.sin(arg)
 
 
-def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False) -> str:
-    """MJCF of the hull (body "carrier"), the double-axis gimbal and the IMU site.
+def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
+              antenna_b: tuple[float, float, float] | None = None,
+              hull_size: tuple[float, float, float] = (18.0, 90.0, 8.0)) -> str:
+    """MJCF of the hull (body "carrier"), the double-axis gimbal, the IMU site and the
+    GNSS antenna site "antenna" (at antenna_b, m; None: at the IMU) with its position and
+    velocity sensors.
 
-    Hull dimensions are visual only; the hull origin is the sway centre. A floating hull
+    Hull dimensions (beam, length, depth, m) are visual only; the hull origin is the sway
+    centre. A floating hull
     (``floating``) has its centre of mass there, about which a free body turns (the
     inertia of an 18 x 90 x 8 m box of 5010 t); the prescribed hull's mass properties
     play no part.
     """
     x, y, z = lever_arm_b
+    ax, ay, az = lever_arm_b if antenna_b is None else antenna_b
+    beam, length, depth = (0.5 * v for v in hull_size)
+    bridge = (min(7.0, 0.4 * beam), min(6.0, 0.15 * length), min(5.0, 0.6 * depth))
+    scale = min(1.0, beam / 9.0)
     inertial = ('<inertial pos="0 0 0" mass="5.01e6" diaginertia="3.41e9 1.62e8 3.52e9"/>'
                 if floating else "")
     return f"""
@@ -113,24 +162,27 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False) -
     <body name="carrier">
       <freejoint name="hull"/>
       {inertial}
-      <geom name="hull" type="box" size="9 45 4" pos="0 0 -2" rgba=".55 .55 .6 1"
-            contype="0" conaffinity="0" mass="5e6"/>
-      <geom name="bridge" type="box" size="7 6 5" pos="{x:g} {y:g} {z / 2:g}" rgba=".85 .85 .9 1"
-            contype="0" conaffinity="0" mass="1e4"/>
+      <geom name="hull" type="box" size="{beam:g} {length:g} {depth:g}" pos="0 0 {-depth / 2:g}"
+            rgba=".55 .55 .6 1" contype="0" conaffinity="0" mass="5e6"/>
+      <geom name="bridge" type="box" size="{bridge[0]:g} {bridge[1]:g} {bridge[2]:g}"
+            pos="{x:g} {y:g} {z / 2:g}" rgba=".85 .85 .9 1" contype="0" conaffinity="0"
+            mass="1e4"/>
+      <site name="antenna" pos="{ax:g} {ay:g} {az:g}" size="{0.1 * scale:g}"/>
       <body name="gimbal_outer" pos="{x:g} {y:g} {z:g}">
         <joint name="gimbal_outer" type="hinge" axis="0 0 1"/>
-        <geom type="cylinder" size="0.6 0.05" rgba=".9 .5 .1 1" contype="0" conaffinity="0"
-              mass="20"/>
+        <geom type="cylinder" size="{0.6 * scale:g} {0.05 * scale:g}" rgba=".9 .5 .1 1"
+              contype="0" conaffinity="0" mass="20"/>
         <body name="gimbal_inner">
           <joint name="gimbal_inner" type="hinge" axis="1 0 0"/>
-          <geom type="box" size="0.25 0.25 0.25" rgba=".2 .8 .3 1" contype="0" conaffinity="0"
-                mass="10"/>
+          <geom type="box" size="{0.25 * scale:g} {0.25 * scale:g} {0.25 * scale:g}"
+                rgba=".2 .8 .3 1" contype="0" conaffinity="0" mass="10"/>
           <site name="imu" size="0.05"/>
         </body>
       </body>
     </body>
   </worldbody>
 {IMU_SENSORS_MJCF}
+{ANTENNA_SENSORS_MJCF}
 </mujoco>
 """
 
@@ -142,7 +194,8 @@ class ShipWorld(PrescribedWorld):
 
     def __init__(self, motion: ShipSwayMotion) -> None:
         self.motion = motion
-        super().__init__(ship_mjcf(motion.lever_arm_b))
+        super().__init__(ship_mjcf(motion.lever_arm_b, antenna_b=motion.antenna_b,
+                                   hull_size=motion.hull_size))
 
     def joint_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Free-joint hull (world position, quaternion; world linear and body angular
@@ -158,12 +211,12 @@ class ShipWorld(PrescribedWorld):
         qacc = np.empty((n, 8))
         qpos[:, 0:3] = pos
         qpos[:, 3:7] = euler_to_quat(euler)
-        qpos[:, 7:9] = motion.gimbal_angles(t)
+        gimbal, gimbal_rate, gimbal_accel = motion.gimbal_state(t)
+        qpos[:, 7:9] = gimbal
         qvel[:, 0:3] = vel
         qvel[:, 3:6] = omega
-        qvel[:, 6] = motion.gimbal_outer_rate
-        qvel[:, 7] = motion.gimbal_inner_rate
+        qvel[:, 6:8] = gimbal_rate
         qacc[:, 0:3] = acc
         qacc[:, 3:6] = omega_dot
-        qacc[:, 6:8] = 0.0
+        qacc[:, 6:8] = gimbal_accel
         return qpos, qvel, qacc

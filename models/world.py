@@ -32,7 +32,9 @@ class WorldSamples:
     t: (N,) s. r_t, v_t, a_t: (N, 3) IMU position (m), velocity (m/s) and acceleration
     (m/s^2) relative to the earth-fixed plane. q_s_t, q_b_t: (N, 4) IMU sensor frame and
     carrier body to plane. omega_ts_s: (N, 3) angular rate of s relative to t in s, rad/s.
-    gimbal_angles: (N, 2) rad (outer, inner); zeros without a gimbal.
+    gimbal_angles: (N, 2) rad (outer, inner); zeros without a gimbal. antenna_r_t,
+    antenna_v_t: (N, 3) the GNSS antenna's position (m) and velocity (m/s) in t, where the
+    world has an antenna (else None).
     """
 
     t: np.ndarray
@@ -43,6 +45,8 @@ class WorldSamples:
     q_b_t: np.ndarray
     omega_ts_s: np.ndarray
     gimbal_angles: np.ndarray
+    antenna_r_t: np.ndarray | None = None
+    antenna_v_t: np.ndarray | None = None
 
 
 class GimbalRates:
@@ -75,6 +79,14 @@ IMU_SENSORS_MJCF = """
   </sensor>
 """
 
+# Optional sensors of a GNSS antenna on site "antenna" (read where the MJCF declares them).
+ANTENNA_SENSORS_MJCF = """
+  <sensor>
+    <framepos name="antenna_pos" objtype="site" objname="antenna"/>
+    <framelinvel name="antenna_linvel" objtype="site" objname="antenna"/>
+  </sensor>
+"""
+
 
 class PrescribedWorld(ABC):
     """A MuJoCo model whose joints follow analytic trajectories."""
@@ -84,9 +96,11 @@ class PrescribedWorld(ABC):
     def __init__(self, mjcf: str) -> None:
         self.model = mujoco.MjModel.from_xml_string(mjcf)
         self.data = mujoco.MjData(self.model)
+        names = [self.model.sensor(i).name for i in range(self.model.nsensor)]
         self._adr = {name: (self.model.sensor(name).adr[0], self.model.sensor(name).dim[0])
                      for name in ("imu_gyro", "imu_accel", "imu_pos", "imu_quat",
-                                  "imu_linvel", "carrier_quat")}
+                                  "imu_linvel", "carrier_quat", "antenna_pos",
+                                  "antenna_linvel") if name in names}
         self._gimbal_qpos = ([self.model.joint(j).qposadr[0] for j in self.gimbal_joints]
                              if self.gimbal_joints else None)
 
@@ -124,9 +138,12 @@ class PrescribedWorld(ABC):
         a_t = quat_rotate(q_s_t, read("imu_accel")) + m.opt.gravity
         gimbal = (qpos[:, self._gimbal_qpos] if self._gimbal_qpos is not None
                   else np.zeros((t.size, 2)))
+        antenna = ((read("antenna_pos").copy(), read("antenna_linvel").copy())
+                   if "antenna_pos" in self._adr else (None, None))
         return WorldSamples(t=t, r_t=read("imu_pos").copy(), v_t=read("imu_linvel").copy(),
                             a_t=a_t, q_s_t=q_s_t.copy(), q_b_t=read("carrier_quat").copy(),
-                            omega_ts_s=read("imu_gyro").copy(), gimbal_angles=gimbal)
+                            omega_ts_s=read("imu_gyro").copy(), gimbal_angles=gimbal,
+                            antenna_r_t=antenna[0], antenna_v_t=antenna[1])
 
 
 # --- dynamic worlds: exact IMU increments of MuJoCo's discrete motion ------------------

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from models.car import VehicleMotion
+from models.indexer import IndexerSpec
 from models.platform import StaticPlatformMotion
 from models.ship import ShipSwayMotion
 from models.waves import WaveShipMotion
@@ -42,6 +43,10 @@ UNITS = {
     "roll_amplitude": "_deg", "roll_period": "_s", "roll_phase": "_deg",
     "linear_amplitude": "_m", "linear_period": "_s", "linear_phase": "_deg",
     "lever_arm_b": "_m", "gimbal_outer_rate": "_deg_s", "gimbal_inner_rate": "_deg_s",
+    "antenna_b": "_m", "hull_size": "_m",
+    # azimuth indexer (rotor_inertia kg m^2; schedule rows [time_s, angle_deg])
+    "stops": "_deg", "dwell": "_s", "slew_rate": "_deg_s", "schedule": "",
+    "natural_frequency": "_hz", "rotor_inertia": "", "servo_step": "_s",
     # wave-driven ship
     "significant_wave_height": "_m", "peak_period": "_s", "peak_enhancement": "",
     "wave_direction": "_deg", "components": "", "heave_period": "_s",
@@ -65,15 +70,16 @@ UNITS = {
 its name, so pitch_period_deg is an error, not a period in degrees."""
 
 VECTORS = ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b",
-           "imu_offset_b", "gps_antenna_b", "euler_sigma")
+           "imu_offset_b", "gps_antenna_b", "euler_sigma", "antenna_b", "hull_size")
 """Parameters of 3 values (E, N, U or R, F, U)."""
 STRINGS = ("preset", "bias_frame", "track")
 INTEGERS = ("components", "pulses_per_rev")
-FREE = ("outages", "outliers", "slips", "initial_covariance")
+FREE = ("outages", "outliers", "slips", "initial_covariance", "stops", "schedule")
 """Checked by their users: (start, end) windows; (time s, east m, north m, up m) and
-(time s, duration s, extra m) rows; a matrix."""
+(time s, duration s, extra m) rows; a matrix; the indexer's stops and schedule rows."""
 
-SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter")
+SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter",
+            "indexer")
 TOP_KEYS = ("name", "paper", "world")
 
 
@@ -224,6 +230,11 @@ class ScenarioConfig:
             _check_range("gps.outliers time", when, 0.0, self.duration, "s")
         for when, duration, _ in (self.odometer.slips if self.odometer is not None else ()):
             _check_range("odometer.slips time", when, 0.0, self.duration - duration, "s")
+        if self.gps is not None and self.world not in PHYSICS_RATE:
+            ratio = self.imu_rate / self.gps.rate
+            if abs(ratio - round(ratio)) > 1e-9:
+                raise ConfigError(f"gps.rate = {self.gps.rate:g} Hz must divide run.imu_rate "
+                                  f"= {self.imu_rate:g} Hz")
         if self.world in PHYSICS_RATE:
             rate = PHYSICS_RATE[self.world]
             ratio = rate / self.imu_rate
@@ -324,7 +335,12 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         for key in ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b"):
             if key in motion and len(motion[key]) != 3:
                 raise ConfigError(f"motion.{key} must have 3 values (E, N, U or R, F, U)")
+        indexer = section("indexer", False)
+        if indexer:
+            motion["indexer"] = _indexer(indexer)
         motion_obj = _dataclass_from(ShipSwayMotion, motion, "motion")
+    if world != "ship-prescribed" and "indexer" in raw:
+        raise ConfigError(f"[indexer] exists on the ship-prescribed world only, not {world}")
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
@@ -355,6 +371,21 @@ def _dataclass_from(cls, values: dict[str, Any], section: str):
         return cls(**values)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{section}: {exc}") from None
+
+
+def _indexer(table: dict[str, Any]) -> IndexerSpec:
+    """The azimuth indexer from its [indexer] table (SI; schedule rows [time_s, angle_deg]
+    converted here)."""
+    table = dict(table)
+    if "schedule" in table:
+        try:
+            table["schedule"] = tuple((float(t), float(a) * deg) for t, a in table["schedule"])
+        except (TypeError, ValueError):
+            raise ConfigError("indexer.schedule must be a list of [time_s, angle_deg] rows")
+    if "stops" in table:
+        stops = table["stops"]
+        table["stops"] = stops if isinstance(stops, tuple) else (stops,)
+    return _dataclass_from(IndexerSpec, table, "indexer")
 
 
 _PLATFORM_KEYS = {"yaw_deg": "yaw_mean", "pitch_deg": "pitch", "roll_deg": "roll"}

@@ -79,10 +79,15 @@ def make_world(config: ScenarioConfig, rng: np.random.Generator) -> PrescribedWo
     if config.world != "ship-prescribed":
         raise ConfigError(f"world = {config.world!r} is unknown; valid choices: "
                           "ship-prescribed, static-platform")
+    return ShipWorld(episode_motion(config, rng))
+
+
+def episode_motion(config: ScenarioConfig, rng: np.random.Generator):
+    """The prescribed ship's motion of one episode (its random linear phases drawn)."""
     motion = config.motion
     if config.random_linear_phase:
         motion = replace(motion, linear_phase=tuple(rng.uniform(0.0, 2 * np.pi, 3)))
-    return ShipWorld(motion)
+    return motion
 
 
 def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Episode:
@@ -95,33 +100,71 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     where = (config.latitude, config.longitude, config.height, config.duration,
              config.imu_samples)
     if config.world == "static-platform":  # the same truth for every seed: computed once
-        truth, imu_t, dtheta, dv = _static_truth(config.motion, *where)
-        dtheta, dv = dtheta.copy(), dv.copy()
+        truth, imu_t, dtheta, dv, antenna = _static_truth(config.motion, *where)
     else:
-        truth, imu_t, dtheta, dv = _prescribed_truth(make_world(config, rngs["motion"]),
-                                                      *where)
+        truth, imu_t, dtheta, dv, antenna = _ship_truth(episode_motion(config, rngs["motion"]),
+                                                        *where)
+    dtheta, dv = dtheta.copy(), dv.copy()   # the cached arrays stay as they are
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
                                           truth.gimbal_angles)
     encoder = config.encoder
     offsets = np.zeros(2) if ideal else encoder.draw_offsets(rngs["encoder"])
     reading = (truth.gimbal_angles.copy() if ideal or not config.motion.has_gimbal
                else encoder.measure(truth.gimbal_angles, offsets))
+    extra = {}
+    if config.gps is not None:
+        extra = _gps(config, rngs["gps"], ideal, truth, *antenna)
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
-                   dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization)
+                   dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization,
+                   extra=extra)
+
+
+def _gps(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
+         truth: NavigationTruth, antenna_r_t: np.ndarray, antenna_v_t: np.ndarray
+         ) -> dict[str, np.ndarray]:
+    """GPS fixes of a prescribed world from the antenna's plane position (m) and velocity
+    (m/s) at the IMU boundaries (M+1, 3), every imu_rate / gps.rate boundaries."""
+    from models.truth import plane_truth
+    from sensors import gps as gps_sensor
+
+    spec = config.gps
+    idx = np.arange(0, truth.t.size, int(round(config.imu_rate / spec.rate)))
+    plane = TangentPlane(config.latitude, config.longitude, config.height)
+    at = plane_truth(plane, truth.t[idx], antenna_r_t[idx], antenna_v_t[idx],
+                     np.broadcast_to([1.0, 0, 0, 0], (idx.size, 4)),
+                     np.broadcast_to([1.0, 0, 0, 0], (idx.size, 4)), truth.gimbal_angles[idx])
+    if ideal:
+        spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0, velocity_sigma=0.0)
+    return gps_sensor.measure(spec, at.t, at.lat, at.lon, at.h, at.v_n, rng)
 
 
 def _prescribed_truth(world: PrescribedWorld, latitude: float, longitude: float,
                       height: float, duration: float, imu_samples: int):
-    """Truth at the IMU interval boundaries and the ideal increments (imu_t, dtheta, dv)
-    of a prescribed world whose plane origin is at latitude, longitude (rad), height (m),
-    over duration (s) in imu_samples intervals; MuJoCo is sampled at TRUTH_OVERSAMPLING
-    x the IMU rate."""
+    """Truth at the IMU interval boundaries, the ideal increments (imu_t, dtheta, dv) and
+    the GNSS antenna's plane position and velocity at the boundaries ((M+1, 3) each, or
+    None) of a prescribed world whose plane origin is at latitude, longitude (rad),
+    height (m), over duration (s) in imu_samples intervals; MuJoCo is sampled at
+    TRUTH_OVERSAMPLING x the IMU rate."""
     plane = TangentPlane(latitude, longitude, height)
     n_fine = imu_samples * TRUTH_OVERSAMPLING
     t_fine = np.arange(n_fine + 1) * (duration / n_fine)
-    truth_fine = navigation_truth(world.sample(t_fine), plane)
+    samples = world.sample(t_fine)
+    truth_fine = navigation_truth(samples, plane)
     imu_t, dtheta, dv = ideal_increments(truth_fine, TRUTH_OVERSAMPLING)
-    return truth_fine.take(slice(None, None, TRUTH_OVERSAMPLING)), imu_t, dtheta, dv
+    every = slice(None, None, TRUTH_OVERSAMPLING)
+    antenna = ((samples.antenna_r_t[every], samples.antenna_v_t[every])
+               if samples.antenna_r_t is not None else (None, None))
+    return truth_fine.take(every), imu_t, dtheta, dv, antenna
+
+
+@lru_cache(maxsize=2)
+def _ship_truth(motion, latitude: float, longitude: float, height: float, duration: float,
+                imu_samples: int):
+    """``_prescribed_truth`` of the prescribed ship, cached per process by its motion (a
+    scenario without random phases has one truth for every seed); callers must not
+    modify the arrays."""
+    return _prescribed_truth(ShipWorld(motion), latitude, longitude, height, duration,
+                             imu_samples)
 
 
 @lru_cache(maxsize=4)

@@ -1,0 +1,155 @@
+"""Paper 004's boat (SPEC 4.5): the azimuth indexer's MuJoCo servo against its analytic
+response, the scenario's truth fidelity with the indexer turning, GNSS on the prescribed
+world, and bad indexer input."""
+import math
+
+import numpy as np
+import pytest
+
+from models.attitude import euler_to_dcm
+from models.indexer import IndexerSpec, simulate_indexer
+from models.units import arcsec, deg
+from scenarios.config import ConfigError, load_scenario
+from scenarios.simulate import simulate
+
+NAME = "usv-mems-swing"
+
+
+@pytest.fixture(scope="module")
+def config():
+    return load_scenario(NAME)
+
+
+@pytest.fixture(scope="module")
+def servo():
+    return simulate_indexer(IndexerSpec(), 660.0)
+
+
+def test_command_holds_each_stop_for_the_dwell_and_slews_between():
+    spec = IndexerSpec()
+    t, angle = spec.breakpoints(1000.0)
+    np.testing.assert_allclose(t[:7], [0, 300, 306, 606, 612, 912, 918])
+    np.testing.assert_allclose(angle[:7] / deg, [0, 0, 180, 180, 0, 0, 180])
+    explicit = IndexerSpec(schedule=((0.0, 0.0), (10.0, 0.0), (20.0, math.pi / 2)))
+    np.testing.assert_allclose(explicit.command(np.array([5.0, 15.0, 40.0])),
+                               [0.0, math.pi / 4, math.pi / 2])
+
+
+def test_servo_lags_the_ramp_by_2_zeta_rate_over_wn_and_settles(servo):
+    """A second-order position loop driven by a ramp of rate r lags it by 2 zeta r / w_n
+    in steady state, and comes to rest at the stop."""
+    spec = IndexerSpec()
+    w_n = 2 * math.pi * spec.natural_frequency
+    lag = 2 * spec.damping_ratio * spec.slew_rate / w_n
+    i = np.searchsorted(servo.t, 304.0)          # 4 s into the 6 s slew: 16 time constants
+    assert servo.command[i] - servo.angle[i] == pytest.approx(lag, rel=1e-3)
+    assert lag > 1 * deg                            # the lag is real, not rounding
+    settled = np.searchsorted(servo.t, 316.0)
+    assert abs(servo.angle[settled] - math.pi) < 1e-6
+    back = np.searchsorted(servo.t, 630.0)
+    assert abs(servo.angle[back]) < 1e-6
+    # The smooth truth is MuJoCo's motion: its rate matches MuJoCo's joint rate to the
+    # semi-implicit step's half-step offset (h/2 x the largest acceleration).
+    angle, rate, accel = servo.state(servo.t)
+    assert np.abs(angle - servo.angle).max() < 1e-12
+    assert np.abs(rate - servo.rate).max() < spec.servo_step / 2 * np.abs(accel).max() * 1.2
+
+
+def test_hull_yaw_acceleration_deflects_the_servo_by_its_stiffness():
+    """The rotor's reaction to the hull's yaw acceleration a: deflection -a / w_n^2 (quasi
+    static, the swing is far below the servo's bandwidth)."""
+    spec = IndexerSpec(stops=(0.0,))
+    w = 2 * math.pi / 10.0
+    amplitude = 3 * deg * w * w                     # 3 deg yaw swing at 10 s
+    run = simulate_indexer(spec, 60.0, lambda t: amplitude * np.cos(w * t))
+    w_n = 2 * math.pi * spec.natural_frequency
+    late = run.t > 30.0
+    expected = -amplitude * np.cos(w * run.t[late]) / w_n ** 2
+    assert np.abs(run.angle[late] - expected).max() < 0.05 * np.abs(expected).max()
+
+
+def test_encoder_reads_the_servo_angle_and_the_truth_has_it(config):
+    episode = simulate(config.with_options(duration=620.0), seed=3)
+    truth, reading = episode.truth, episode.gimbal_encoder
+    t = truth.t
+    servo = simulate_indexer(config.motion.indexer, 620.0,
+                             config.motion.hull_yaw_accel)
+    np.testing.assert_allclose(truth.gimbal_angles[:, 0], servo.state(t)[0], atol=1e-12)
+    assert np.all(truth.gimbal_angles[:, 1] == 0.0)
+    resolution = config.encoder.resolution
+    assert np.abs(reading[:, 0] - truth.gimbal_angles[:, 0]).max() <= resolution / 2 + 1e-12
+    # at rest on 180 deg between the slews, turning in them
+    assert abs(truth.gimbal_angles[np.searchsorted(t, 450.0), 0] - math.pi) < 1e-3
+    # the IMU turns with the indexer: C_s^n = C_b^n Rz(angle)
+    from models.attitude import quat_to_dcm, rot_z
+    i = np.searchsorted(t, 450.0)
+    C_s_b = quat_to_dcm(truth.q_b_n[i]).T @ quat_to_dcm(truth.q_s_n[i])
+    np.testing.assert_allclose(C_s_b, rot_z(truth.gimbal_angles[i, 0]), atol=1e-12)
+
+
+def test_fidelity_600s_with_the_indexer_turning(config):
+    """SPEC section 3 on this scenario (two slews inside the 600 s): 10x tighter."""
+    from scenarios.fidelity import fidelity_errors
+    err = fidelity_errors(config.with_options(duration=620.0), seed=0)
+    assert err["attitude_rad"] < 0.1 * arcsec
+    assert err["velocity_m_s"] < 0.5e-3
+    assert err["position_m"] < 0.1
+
+
+def test_ideal_gnss_is_the_antenna_of_the_prescribed_hull(config):
+    """The antenna (MuJoCo site) against the motion's own analytic kinematics:
+    r = sway centre + C_b^t antenna_b, v = v_centre + C_b^t (omega x antenna_b)."""
+    from models.earth import TangentPlane
+    from models.truth import plane_truth
+    cfg = config.with_options(duration=60.0)
+    episode = simulate(cfg, seed=0, ideal=True)
+    m = cfg.motion
+    t = episode.extra["gps_t"]
+    assert np.allclose(np.diff(t), 1.0)
+    centre, v_centre, _ = m.sway_centre(t)
+    euler, _, _ = m.euler(t)
+    C_b_t = euler_to_dcm(euler)
+    omega, _ = m.hull_angular_rate(t)
+    arm = np.asarray(m.antenna_b)
+    r = centre + C_b_t @ arm
+    v = v_centre + np.einsum("nij,nj->ni", C_b_t, np.cross(omega, arm))
+    plane = TangentPlane(cfg.latitude, cfg.longitude, cfg.height)
+    q = np.broadcast_to([1.0, 0, 0, 0], (t.size, 4))
+    expected = plane_truth(plane, t, r, v, q, q, np.zeros((t.size, 2)))
+    np.testing.assert_allclose(episode.extra["gps_lat"], expected.lat, atol=1e-12)
+    np.testing.assert_allclose(episode.extra["gps_lon"], expected.lon, atol=1e-12)
+    np.testing.assert_allclose(episode.extra["gps_h"], expected.h, atol=1e-6)
+    np.testing.assert_allclose(episode.extra["gps_v_n"], expected.v_n, atol=1e-9)
+    # the antenna is not the IMU: 2 m up the mast, its velocity is the swing's
+    assert np.abs(episode.extra["gps_v_n"] - episode.truth.v_n[::100]).max() > 0.1
+
+
+@pytest.mark.parametrize("table, field", [
+    ("schedule = [[0.0, 0.0], [100.0, 90.0], [50.0, 0.0]]", "indexer.schedule"),
+    ("dwell_s = -1.0", "indexer.dwell"),
+    ("natural_frequency_hz = 0.0", "indexer.natural_frequency"),
+    ("stops_deg = [0.0, \"half\"]", "indexer.stops"),
+    ("dwell_deg = 300.0", "indexer.dwell_deg"),
+])
+def test_bad_indexer_input_is_one_line_naming_the_field(tmp_path, table, field):
+    from scenarios.config import DATA_DIR
+    key = table.split(" =")[0]
+    lines = [line for line in (DATA_DIR / f"{NAME}.toml").read_text().splitlines()
+             if not line.startswith(key + " ")]
+    text = "\n".join(lines).replace("[indexer]\n", f"[indexer]\n{table}\n")
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as error:
+        load_scenario(str(path))
+    message = str(error.value)
+    assert field in message and "\n" not in message
+
+
+def test_indexer_and_constant_gimbal_rates_exclude_each_other(tmp_path):
+    from scenarios.config import DATA_DIR
+    text = (DATA_DIR / f"{NAME}.toml").read_text().replace(
+        "gimbal_outer_rate_deg_s = 0.0", "gimbal_outer_rate_deg_s = 6.0")
+    path = tmp_path / "both.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match="gimbal"):
+        load_scenario(str(path))
