@@ -209,6 +209,17 @@ def st_velocity_measurement(x: np.ndarray, v_ins: np.ndarray) -> np.ndarray:
 
 
 # --- the GNSS-aided filter model of paper 004 ---------------------------------------------------
+@dataclass
+class IndexedGpsInsInputs(GpsInsInputs):
+    """``GpsInsInputs`` of an IMU turned on the hull by an indexer or a gimbal (read by its
+    encoder): lever_arm_b (B, K+1, 3) m, IMU to antenna in the IMU frame at each epoch
+    boundary; omega_bs_s (B, K+1, 3) rad/s, the IMU's rate relative to the hull over the
+    last ``loose_gps.RATE_WINDOW`` s of each epoch (the window of the INS rate the lever
+    velocity uses)."""
+
+    omega_bs_s: np.ndarray
+
+
 VARIANTS = ("st", "st-linear", "classic")
 """st: the transformed model (6.1, 6.4, 6.5) integrated by RK4, nonlinear measurement
 (STUKF, or any rule); st-linear: (6.7) with its H (STEKF); classic: (6.1, 6.2, 6.5) and
@@ -262,6 +273,20 @@ class RotationVectorGnssModel(FilterModel):
         self._rate = np.zeros((B, 3))
         self._k = 0
         self.feedback_count = np.zeros(B, int)
+        self._bias = {name: np.zeros((B, K + 1, 3)) for name in ("gyro_bias", "accel_bias")}
+
+    def series(self) -> dict[str, np.ndarray]:
+        """The INS's accumulated bias estimates gyro_bias (rad/s) and accel_bias (m/s^2),
+        (B, K+1, 3) at the epoch boundaries after feedback (the state holds the rest)."""
+        return self._bias
+
+    def _lever(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Lever arm l (B, 3) m in the IMU frame and the IMU's rate relative to the hull
+        (B, 3) rad/s at epoch boundary k."""
+        inp = self.inputs
+        if isinstance(inp, IndexedGpsInsInputs):
+            return inp.lever_arm_b[:, k], inp.omega_bs_s[:, k]
+        return inp.lever_arm_b, np.zeros((self.batch, 3))
 
     def initial(self):
         tu, B = self.tuning, self.batch
@@ -320,9 +345,10 @@ class RotationVectorGnssModel(FilterModel):
         self._k = k + 1
         s = self.ins.state
         C_b_p = self._C_b_p[:, k + 1]
-        l = inp.lever_arm_b
+        l, w_bs = self._lever(k + 1)
         w_ie = earth_rate_n(s.lat)
-        w_nb = self._rate - np.einsum("bji,bj->bi", C_b_p, w_ie + transport_rate_n(
+        # the lever turns with the hull: w_nh = w_ns - w_hs, in IMU axes
+        w_nb = self._rate - w_bs - np.einsum("bji,bj->bi", C_b_p, w_ie + transport_rate_n(
             s.lat, s.h, s.v_n))
         lever_p = np.einsum("bij,bj->bi", C_b_p, l)                 # C_b^p l
         lever_v = np.einsum("bij,bj->bi", C_b_p, np.cross(w_nb, l))  # C_b^p (w x l)
@@ -370,6 +396,7 @@ class RotationVectorGnssModel(FilterModel):
         if self.feedback_below is not None:
             ready &= np.sqrt(np.maximum(P[:, 2, 2], 0.0)) < self.feedback_below
         if not ready.any():
+            self._record_bias(k)
             return x, P
         x = x.copy()
         b = np.flatnonzero(ready)
@@ -389,7 +416,12 @@ class RotationVectorGnssModel(FilterModel):
         self.ins.accel_bias[b] += x[b, NABLA]
         x[b] = 0.0
         self.feedback_count[b] += 1
+        self._record_bias(k)
         return x, P
+
+    def _record_bias(self, k: int) -> None:
+        self._bias["gyro_bias"][:, k] = self.ins.gyro_bias
+        self._bias["accel_bias"][:, k] = self.ins.accel_bias
 
     def attitude(self, k, x):
         return rotvec_to_dcm(x[:, PHI]) @ self._C_b_p[:, k]

@@ -69,7 +69,8 @@ class ShipSwayMotion(GimbalRates):
     def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gimbal angles (rad), rates (rad/s) and accelerations (rad/s^2), (N, 2) each
         (outer, inner), at times t (N,) s: the indexer servo's simulated motion (run once
-        per process over [0, max t]) or the constant rates."""
+        per process over [0, max t] rounded up to whole 600 s, so that a render at one time
+        and the episode see one motion) or the constant rates."""
         t = np.asarray(t, dtype=float)
         zeros = np.zeros((t.size, 2))
         if self.indexer is None:
@@ -77,7 +78,8 @@ class ShipSwayMotion(GimbalRates):
             return self.gimbal_angles(t), zeros + rates, zeros
         # The servo is excited by the hull's turning only: one run serves every linear phase.
         hull = replace(self, linear_phase=(0.0, 0.0, 0.0))
-        servo = cached_indexer(self.indexer, float(t.max()), hull)
+        horizon = 600.0 * max(1, int(np.ceil(float(t.max()) / 600.0 - 1e-9)))
+        servo = cached_indexer(self.indexer, horizon, hull)
         angle, rate, accel = servo.state(t)
         out = [zeros.copy() for _ in range(3)]
         for column, value in zip(out, (angle, rate, accel)):

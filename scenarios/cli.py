@@ -117,14 +117,16 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        help="scenario to run the paper's experiment on (default: the "
                        "paper's: ring-road-odometer for paper000, figure8-gps for "
                        "paper001, static-large-azimuth for "
-                       "paper002, ship-sway-rotary for paper003); a .toml may carry a "
+                       "paper002, ship-sway-rotary for paper003, usv-mems-swing for "
+                       "paper004); a .toml may carry a "
                        "[filter] table")
     bench.add_argument("--seed", type=_seed, default=0, metavar="S",
                        help="campaign seed (default: 0)")
     bench.add_argument("--filters", help="comma-separated filter names (default: "
                        "sgkf,rdghkf,ckf,ekf for paper000; lckf,rakf,swakf for paper001; "
                        "ekf,ukf,sghkf-2,sghkf-4 for "
-                       "paper002; kf,sakf,makf,imakf for paper003)")
+                       "paper002; kf,sakf,makf,imakf for paper003; stukf,stekf,ukf,ekf for "
+                       "paper004)")
     bench.add_argument("--outage", type=_float_option("--outage", allow_zero=True), metavar="S",
                        help="paper001: a GPS outage of S seconds in the middle of the "
                        "motion phase (default: none)")
@@ -139,6 +141,18 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        help="paper001: the body point whose velocity gives the GPS heading: "
                        "the antenna (the paper) or the rear axle (no kinematic sideslip; "
                        "default: antenna)")
+    bench.add_argument("--swing", choices=["mild", "moderate", "severe", "all"],
+                       help="paper004: the boat's swing level (roll/pitch/heading 5/3/2, "
+                       "10/5/3, 22.5/10/5 deg, assumed), or all three in turn (default: "
+                       "moderate)")
+    bench.add_argument("--misalignment", choices=["large", "small", "coarse"],
+                       help="paper004: the fine stage's start: uniform within level +-10, "
+                       "heading +-60 deg (large), +-0.1/+-0.5 deg (small), or the "
+                       "GNSS-velocity-aided coarse alignment's result (default: large)")
+    bench.add_argument("--case", choices=["swing", "consistency", "turntable"],
+                       help="paper004: the swing experiments, the consistency study "
+                       "(biases raised to 3.5-4.5 deg/h and 4.5-5.5 mg) or the static "
+                       "turntable (900 s; default: swing)")
     bench.add_argument("--out", metavar="DIR", help="directory for results.csv, coarse.csv, "
                        "timeseries.npz, the plots and the per-episode files (default: none)")
     bench.add_argument("--json", metavar="FILE",
@@ -182,7 +196,8 @@ def _positive_int(field: str):
     return parse
 
 
-DEFAULT_EPISODES = {"paper000": 50, "paper001": 50, "paper002": 100, "paper003": 50}
+DEFAULT_EPISODES = {"paper000": 50, "paper001": 50, "paper002": 100, "paper003": 50,
+                    "paper004": 50}
 
 
 def _check_writable(path_text: str, option: str) -> None:
@@ -219,13 +234,16 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             raise ConfigError(f"--outage exists for paper001 only, not {args.paper}")
         settings["outage"] = args.outage
     for option, paper in (("heading_point", "paper001"), ("coarse", "paper001"),
-                          ("disturbance", "paper000")):
+                          ("disturbance", "paper000"), ("swing", "paper004"),
+                          ("misalignment", "paper004"), ("case", "paper004")):
         value = getattr(args, option)
         if value is not None:
             if args.paper != paper:
                 raise ConfigError(f"--{option.replace('_', '-')} exists for {paper} only, "
                                   f"not {args.paper}")
             settings[option] = value
+    if settings.get("swing") == "all":
+        return _bench_levels(args, settings)
     exp = experiment(args.paper, args.setup, **settings)
     filters = (list(exp.default_filters) if args.filters is None
                else [f.strip() for f in args.filters.split(",") if f.strip()])
@@ -242,6 +260,45 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         print(f"wrote {path}")
     print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s) in "
           f"{elapsed:.1f} s")
+    return 0
+
+
+def _bench_levels(args: argparse.Namespace, settings: dict) -> int:
+    """paper004 --swing all: one campaign per swing level (in DIR/LEVEL with --out), the
+    JSON summaries merged into one {"fine": {FILTER: {LEVEL: ...}}, "coarse": ...}."""
+    import json
+    from pathlib import Path
+
+    from scenarios.experiments import experiment
+    from scenarios.paper004 import SWING_LEVELS
+    from scenarios.report import format_tables, write_outputs
+    from scenarios.campaign import run_campaign
+
+    merged: dict = {"fine": {}, "coarse": {}, "settings": {}}
+    episodes = args.episodes or DEFAULT_EPISODES[args.paper]
+    start = time.perf_counter()
+    for level in SWING_LEVELS:
+        exp = experiment(args.paper, args.setup, **{**settings, "swing": level})
+        filters = (list(exp.default_filters) if args.filters is None
+                   else [f.strip() for f in args.filters.split(",") if f.strip()])
+        out = None if args.out is None else str(Path(args.out) / level)
+        result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
+                              out_dir=out, resume=args.resume, workers=args.workers,
+                              executor=args.executor, address=args.address,
+                              force=args.force)
+        print(format_tables(result))
+        for path in write_outputs(result, out, None):
+            print(f"wrote {path}")
+        summary = result.summary()
+        for name, per_level in summary["fine"].items():
+            merged["fine"].setdefault(name, {}).update(per_level)
+        merged["coarse"].update(summary["coarse"])
+        merged["settings"] = {**summary["settings"], "swing": list(SWING_LEVELS)}
+    if args.json:
+        Path(args.json).write_text(json.dumps(merged, indent=2))
+        print(f"wrote {args.json}")
+    print(f"{len(SWING_LEVELS)} swing levels x {episodes} episodes in "
+          f"{time.perf_counter() - start:.1f} s")
     return 0
 
 

@@ -248,7 +248,9 @@ class AlignmentEnv(gym.Env):
             height, width = self._render_size
             self._renderer = mujoco.Renderer(world.model, height, width)
             self._camera = mujoco.MjvCamera()
-            distance = 6.0 if self.config.world == "static-platform" else 160.0
+            hull = getattr(self.config.motion, "hull_size", None)
+            distance = (6.0 if self.config.world == "static-platform"
+                        else 160.0 if hull is None else 2.5 * max(hull))
             self._camera.distance, self._camera.elevation = distance, -25.0
             self._camera.azimuth = 120.0
         k = 0 if self._run is None else self._run.k

@@ -38,6 +38,9 @@ def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
     elif paper == "paper002":
         from scenarios.paper002 import Paper002Experiment
         cls = Paper002Experiment
+    elif paper == "paper004":
+        from scenarios.paper004 import Paper004Experiment
+        cls = Paper004Experiment
     else:
         raise ConfigError(f"unknown paper {paper!r}; valid choices: " + ", ".join(PAPERS))
     return replace(cls(), **settings)

@@ -1,0 +1,491 @@
+"""Paper 004 end to end: a small boat swinging at its mooring, a MEMS IMU on a single-axis
+azimuth indexer (0 -> 180 -> 0 deg, 5 min dwells) and single-point GNSS; fine alignment
+with the rotation-vector large-misalignment model (``estimators.rotation_vector``) by the
+STUKF (transformed model, nonlinear), the STEKF ((6.7) with its feedback), the UKF on the
+classic large-angle model and the EKF on it (expected to fail from a large dynamic
+misalignment: flagged in the tables, not hidden).
+
+Each episode: the GNSS-velocity-aided coarse alignment over the first ``coarse_duration``
+s (ALGORITHMS 1.2, lever arm compensated; its error is reported, and is the start with
+``misalignment = "coarse"``), then one closed-loop filter epoch per GNSS fix (velocity
+and position at the antenna, whose lever arm turns in the IMU frame with the indexer) to
+the end of the 2000 s run. The fine stage starts from the paper's Monte Carlo start
+(``misalignment``: "large", uniform within level +-10 deg, heading +-60 deg; "small",
++-0.1 / +-0.5 deg) or from the coarse alignment. Accuracy: RMS of the hull's pitch, roll
+and heading errors over [rms_start, end]; heading convergence time: the first time after
+which the heading error stays within +-1 deg (the fine run's length if never).
+Consistency: NEES of the attitude and bias states and the fraction of time the heading
+error is inside the filter's own 3 sigma. Cases: "swing" (the paper's experiments 1-3,
+``swing`` sets the level), "consistency" (biases raised to [3.5, 4, 4.5] deg/h and
+[4.5, 5, 5.5] mg, the filter tuned on the datasheet) and "turntable" (the indexer on a
+still base, 900 s, biases about 5 deg/h and 5 mg, P0 (5, 5, 60) deg).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from estimators.inertial_frame import velocity_aided_alignment
+from estimators.loose_gps import RATE_WINDOW
+from estimators.metrics import misalignment, nees
+from estimators.model import stack_episodes
+from estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
+                                        RotationVectorGnssModel, RotationVectorTuning)
+from models.attitude import dcm_to_quat, quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
+from models.earth import earth_rate_n, radii
+from models.units import deg, deg_per_h, mg
+from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode
+from scenarios.config import ConfigError, ScenarioConfig
+from scenarios.simulate import simulate
+from sensors.imu import ImuTuning
+
+SWING_LEVELS = {"mild": (5.0, 3.0, 2.0), "moderate": (10.0, 5.0, 3.0),
+                "severe": (22.5, 10.0, 5.0)}
+"""Roll, pitch, heading swing amplitudes, deg (SPEC 4.5, *assumed*: the paper's table 2 is
+missing); periods ``SWING_PERIODS``."""
+SWING_PERIODS = (8.0, 6.0, 10.0)
+"""Roll, pitch, heading swing periods, s (*assumed*)."""
+MISALIGNMENTS = {"large": ((10.0, 10.0, 60.0), (45.0, 45.0, 60.0)),
+                 "small": ((0.1, 0.1, 0.5), (0.1, 0.1, 0.5)),
+                 "coarse": (None, (45.0, 45.0, 60.0))}
+"""Start: half-widths of the uniform start misalignment E, N, U (deg; None: the coarse
+alignment's result) and the filter's P0 attitude sigmas (deg)."""
+CASES = ("swing", "consistency", "turntable")
+RAISED_GYRO_BIAS = (3.5, 4.0, 4.5)      # deg/h, the consistency study
+RAISED_ACCEL_BIAS = (4.5, 5.0, 5.5)     # mg
+TURNTABLE = {"duration": 900.0, "range": (5.0, 5.0, 60.0), "sigma": (5.0, 5.0, 60.0),
+             "gyro_bias": (4.5, 5.0, 5.5), "accel_bias": (4.5, 5.0, 5.5)}
+"""The static turntable case (biases "about 5 deg/h and 5 mg": spread per axis, *assumed*)."""
+FILTERS = ("stukf", "stekf", "ukf", "ekf")
+HEADING_LIMIT = 1.0 * deg
+
+
+@dataclass(frozen=True)
+class Paper004Experiment(Experiment):
+    """Settings (SPEC 4.5; *assumed* values marked in the constants above). Times s.
+
+    swing: a key of SWING_LEVELS; misalignment: a key of MISALIGNMENTS; case: one of
+    CASES; coarse_duration: the coarse alignment's window from t = 0 (and the fine
+    stage's start); fine_duration: the fine run's length (None: to the end of the
+    scenario, or the turntable's 900 s); filter_step: a multiple of the GNSS interval;
+    rms_start: the accuracy window's start (s of scenario time; None: the paper's 600 s
+    on runs of >= 1200 s, else the second half of the fine run); gyro_bias_walk
+    (rad/s/sqrt(s)) and accel_bias_walk (m/s^2/sqrt(s)): the filter's bias random walks
+    (ALGORITHMS 6: kept non-zero, *assumed*); velocity_sigma (m/s) and position_sigma (m):
+    P0 of the INS started from a GNSS fix with an attitude off by the misalignment (the
+    lever arm's share included)."""
+
+    scenario: str = "usv-mems-swing"
+    swing: str = "moderate"
+    misalignment: str = "large"
+    case: str = "swing"
+    coarse_duration: float = 60.0
+    fine_duration: float | None = None
+    filter_step: float = 1.0
+    rms_start: float | None = None
+    gyro_bias_walk: float = 1e-3 * deg_per_h
+    accel_bias_walk: float = 1e-7
+    velocity_sigma: float = 0.5
+    position_sigma: float = 5.0
+    heading_threshold_arcmin: float = 60.0
+    rms_window: float = 1400.0
+    default_filters: tuple[str, ...] = FILTERS
+
+    paper = "004"
+    worlds = ("ship-prescribed",)
+    model_variants = ("st", "st-linear")
+    state_count = 15
+
+    @property
+    def starts(self) -> tuple[str, ...]:
+        return (self.misalignment,)
+
+    @property
+    def episode_class(self):
+        return Paper004Episode
+
+    @property
+    def duration(self) -> float:
+        from scenarios.config import load_scenario
+        if self.fine_duration is not None:
+            return self.coarse_duration + self.fine_duration
+        if self.case == "turntable":
+            return TURNTABLE["duration"]
+        return load_scenario(self.scenario).duration
+
+    def scenario_config(self) -> ScenarioConfig:
+        """The scenario at this experiment's swing level (or still, on the turntable) and
+        sensor biases, checked."""
+        self.check_settings()
+        config = super().scenario_config()
+        m = config.motion
+        if m.indexer is None or config.gps is None or m.antenna_b is None:
+            raise ConfigError(f"paper004 needs an [indexer], a [gps] table and "
+                              f"motion.antenna_b_m; scenario {config.name!r} lacks one")
+        if self.case == "turntable":
+            m = replace(m, roll_amplitude=0.0, pitch_amplitude=0.0, yaw_amplitude=0.0,
+                        linear_amplitude=(0.0, 0.0, 0.0))
+        else:
+            roll, pitch, heading = (a * deg for a in SWING_LEVELS[self.swing])
+            m = replace(m, roll_amplitude=roll, pitch_amplitude=pitch, yaw_amplitude=heading,
+                        roll_period=SWING_PERIODS[0], pitch_period=SWING_PERIODS[1],
+                        yaw_period=SWING_PERIODS[2])
+        imu = config.imu
+        if self.case != "swing":
+            gyro, accel = ((RAISED_GYRO_BIAS, RAISED_ACCEL_BIAS) if self.case == "consistency"
+                           else (TURNTABLE["gyro_bias"], TURNTABLE["accel_bias"]))
+            imu = replace(imu, gyro=replace(imu.gyro, bias_fixed=tuple(
+                              b * deg_per_h for b in gyro)),
+                          accel=replace(imu.accel, bias_fixed=tuple(b * mg for b in accel)))
+        config = replace(config, motion=m, imu=imu, random_linear_phase=False)
+        self.check(config)
+        return config
+
+    def check_settings(self) -> None:
+        """One-line errors for settings that need no scenario."""
+        for name, valid in (("swing", SWING_LEVELS), ("misalignment", MISALIGNMENTS),
+                            ("case", CASES)):
+            if getattr(self, name) not in valid:
+                raise ConfigError(f"--{name} {getattr(self, name)!r} is unknown; valid: "
+                                  + ", ".join(valid))
+
+    def check(self, config: ScenarioConfig) -> None:
+        self.check_settings()
+        fix = 1.0 / config.gps.rate
+        ratio = self.filter_step / fix
+        if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
+            raise ConfigError(f"filter_step = {self.filter_step:g} s must be a multiple of "
+                              f"the GNSS interval {fix:g} s")
+        if not 3.0 * fix <= self.coarse_duration < config.duration:
+            raise ConfigError(f"coarse_duration = {self.coarse_duration:g} s must hold >= 3 "
+                              f"GNSS fixes and end before the run ({config.duration:g} s)")
+        if not (self.coarse_duration <= self.accuracy_start(config.duration)
+                < config.duration):
+            raise ConfigError(f"rms_start = {self.rms_start:g} s must lie in "
+                              f"[{self.coarse_duration:g}, {config.duration:g}) s")
+
+    def accuracy_start(self, duration: float) -> float:
+        """Start (s of scenario time) of the RMS accuracy window of a run of duration s."""
+        if self.rms_start is not None:
+            return self.rms_start
+        if duration >= 1200.0:
+            return 600.0
+        return self.coarse_duration + 0.5 * (duration - self.coarse_duration)
+
+    def tuning(self, config: ScenarioConfig) -> RotationVectorTuning:
+        """The filter's belief: the datasheet's IMU (``ImuTuning.from_spec``), the
+        receiver's sigmas, P0 attitude from the start's row of MISALIGNMENTS."""
+        imu = ImuTuning.from_spec(config.imu)
+        gps = config.gps
+        sigma = (TURNTABLE["sigma"] if self.case == "turntable"
+                 else MISALIGNMENTS[self.misalignment][1])
+        return RotationVectorTuning(
+            attitude_sigma=tuple(s * deg for s in sigma), velocity_sigma=self.velocity_sigma,
+            position_sigma=self.position_sigma,
+            gyro_bias_sigma=max(imu.gyro_bias_sigma, 0.1 * deg_per_h),
+            accel_bias_sigma=max(imu.accel_bias_sigma, 0.1 * mg),
+            gyro_noise_density=imu.gyro_noise_density,
+            accel_noise_density=max(imu.accel_noise_density, 1e-4),
+            gyro_bias_walk=self.gyro_bias_walk, accel_bias_walk=self.accel_bias_walk,
+            gnss_position_sigma_h=max(gps.position_sigma_h, 0.01),
+            gnss_position_sigma_v=max(gps.position_sigma_v, 0.01),
+            gnss_velocity_sigma=max(gps.velocity_sigma, 0.005))
+
+    def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
+                        ) -> "Paper004Episode":
+        return prepare_episode(self, seed, config)
+
+    def start_errors(self, episodes):
+        if self.misalignment == "coarse":
+            return {self.misalignment: np.stack([e.coarse_error for e in episodes])}
+        half = (TURNTABLE["range"] if self.case == "turntable"
+                else MISALIGNMENTS[self.misalignment][0])
+        draws = np.stack([e.start_draw for e in episodes])
+        return {self.misalignment: draws * np.deg2rad(half)}
+
+    def model(self, episodes, start_error, variant=""):
+        if variant not in ("",) + self.model_variants:
+            raise ValueError(f"paper004 has no model variant {variant!r}")
+        start_error = np.broadcast_to(np.asarray(start_error, float), (len(episodes), 3))
+        return RotationVectorGnssModel(model_inputs(episodes, start_error),
+                                       self.tuning(self.scenario_config()),
+                                       variant or "classic")
+
+    def attitude_sigma(self):
+        sigma = (TURNTABLE["sigma"] if self.case == "turntable"
+                 else MISALIGNMENTS[self.misalignment][1])
+        return np.deg2rad(sigma)
+
+    def observed_states(self, layout):
+        return layout.indices("misalignment", "gyro_bias", "accel_bias")
+
+    def nees(self, result, episodes, error_n):
+        """NEES of the 9 states the truth knows exactly: the misalignment (the state's phi
+        estimates C_true C_est^T, so its error is -error_n) and the gyro and accelerometer
+        biases (accumulated estimate + state - drawn), IMU frame."""
+        return nees(state_errors(result, episodes, error_n),
+                    result.P[..., _KNOWN[:, None], _KNOWN])
+
+    def summary(self, result):
+        return paper004_summary(result)
+
+    def format_tables(self, result):
+        return format_tables(result)
+
+    def plots(self, result, out):
+        return consistency_plot(result, out)
+
+
+_KNOWN = np.r_[np.arange(15)[PHI], np.arange(15)[EPS], np.arange(15)[NABLA]]
+
+
+@dataclass
+class Paper004Episode(PreparedEpisode):
+    """One boat episode from the end of the coarse alignment (``PreparedEpisode``; C_s_b
+    from the encoder). t (K+1,) s epoch boundaries (scenario time); dtheta, dv (K, S, 3)
+    raw increments per epoch; gps_* at the boundaries (NaN without a fix); lever_arm_s
+    (K+1, 3) m IMU to antenna in the IMU frame; omega_bs_s (K+1, 3) rad/s the indexer's
+    rate over the last RATE_WINDOW s of each epoch (both from the encoder); coarse_error
+    (3,) rad; coarse_residual m/s (the coarse fit's RMS); start_draw (3,) uniform on
+    [-1, 1], scaled to the start misalignment by the experiment; imu_dt s."""
+
+    t: np.ndarray
+    imu_dt: float
+    dtheta: np.ndarray
+    dv: np.ndarray
+    gps_lat: np.ndarray
+    gps_lon: np.ndarray
+    gps_h: np.ndarray
+    gps_v_n: np.ndarray
+    lever_arm_s: np.ndarray
+    omega_bs_s: np.ndarray
+    coarse_error: np.ndarray
+    coarse_residual: float
+    start_draw: np.ndarray
+
+    _FIELDS = ("t", "dtheta", "dv", "gps_lat", "gps_lon", "gps_h", "gps_v_n", "lever_arm_s",
+               "omega_bs_s", "coarse_error", "start_draw", "C_s_n_true", "C_b_n_true",
+               "C_s_b", "gyro_bias", "accel_bias")
+
+    def arrays(self):
+        return {"seed": self.seed, "imu_dt": self.imu_dt, "lat": self.lat, "h": self.h,
+                "coarse_residual": self.coarse_residual,
+                **{name: getattr(self, name) for name in self._FIELDS}}
+
+    @classmethod
+    def from_arrays(cls, f):
+        return cls(seed=int(f["seed"]), imu_dt=float(f["imu_dt"]), lat=float(f["lat"]),
+                   h=float(f["h"]), coarse_residual=float(f["coarse_residual"]),
+                   **{name: np.asarray(f[name]) for name in cls._FIELDS})
+
+
+def encoder_frames(angles: np.ndarray) -> np.ndarray:
+    """C_s^b (N, 3, 3) = Rz(outer) Rx(inner) from encoder angles (N, 2) rad."""
+    return rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
+
+
+def prepare_episode(experiment: Paper004Experiment, seed: int,
+                    config: ScenarioConfig | None = None) -> Paper004Episode:
+    """Simulate the run, align coarsely from the GNSS velocity over the first
+    coarse_duration s, cut the data into the filter's epochs."""
+    config = config or experiment.scenario_config()
+    episode = simulate(config, seed=seed)
+    truth, dt = episode.truth, config.imu_interval
+    gps = episode.extra
+    m = config.motion
+    lever_b = np.subtract(m.antenna_b, m.lever_arm_b)      # IMU on the indexer's axis
+    C_s_b = encoder_frames(episode.gimbal_encoder)
+    lever_s = np.einsum("nji,j->ni", C_s_b, lever_b)
+    n_coarse = int(round(experiment.coarse_duration / dt))
+    fixes = np.flatnonzero((gps["gps_t"] <= experiment.coarse_duration + 1e-9)
+                           & gps["gps_valid"])
+    if np.ptp(episode.gimbal_encoder[: n_coarse + 1, 0]) > 1e-3:
+        raise ConfigError("paper004: the indexer must rest during the coarse alignment "
+                          f"(0 to {experiment.coarse_duration:g} s)")
+    C_coarse, residual = velocity_aided_alignment(
+        episode.dtheta[:n_coarse], episode.dv[:n_coarse], dt, gps["gps_t"][fixes] / dt,
+        gps["gps_lat"][fixes], gps["gps_h"][fixes], gps["gps_v_n"][fixes], lever_s[0])
+    C_s_n_true = quat_to_dcm(truth.q_s_n)
+    per_epoch = int(round(experiment.filter_step / dt))
+    epochs = (truth.t.size - 1 - n_coarse) // per_epoch
+    idx = n_coarse + per_epoch * np.arange(epochs + 1)
+    t = truth.t[idx]
+    g = np.rint(t * config.gps.rate).astype(int)
+    if np.any(np.abs(gps["gps_t"][g] - t) > 1e-6):
+        raise ConfigError("paper004: the filter epochs must fall on GNSS fixes (latency 0)")
+    window = max(1, int(round(RATE_WINDOW / dt)))
+    enc = episode.gimbal_encoder
+    rates = (enc[idx] - enc[idx - window]) / (window * dt)
+    inner = enc[idx, 1]
+    omega_bs_s = np.stack([rates[:, 1], np.sin(inner) * rates[:, 0],
+                           np.cos(inner) * rates[:, 0]], -1)
+    draw = np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, 3)
+    return Paper004Episode(
+        seed=seed, t=t, imu_dt=dt,
+        dtheta=episode.dtheta[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3),
+        dv=episode.dv[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3),
+        gps_lat=gps["gps_lat"][g], gps_lon=gps["gps_lon"][g], gps_h=gps["gps_h"][g],
+        gps_v_n=gps["gps_v_n"][g], lever_arm_s=lever_s[idx], omega_bs_s=omega_bs_s,
+        coarse_error=misalignment(C_s_n_true[n_coarse], C_coarse),
+        coarse_residual=float(residual), start_draw=draw,
+        C_s_n_true=C_s_n_true[idx], C_b_n_true=quat_to_dcm(truth.q_b_n[idx]),
+        C_s_b=C_s_b[idx], gyro_bias=episode.imu_realization.gyro.bias,
+        accel_bias=episode.imu_realization.accel.bias,
+        lat=float(truth.lat[0]), h=float(truth.h[0]))
+
+
+def model_inputs(episodes: list[Paper004Episode], start_error: np.ndarray
+                 ) -> IndexedGpsInsInputs:
+    """The model's inputs for a batch; each INS starts at the first epoch from the true
+    attitude turned by its start error (phi E, N, U, rad: C = exp(-[phi x]) C_true), at
+    the GNSS fix less the lever arm and the GNSS velocity less the lever arm's velocity
+    (both with that attitude: a wrong attitude puts them off, P0 covers it)."""
+    inputs = []
+    for e, phi in zip(episodes, start_error):
+        C_s_n0 = rotvec_to_dcm(-phi) @ e.C_s_n_true[0]
+        lat, lon, h = e.gps_lat[0], e.gps_lon[0], e.gps_h[0]
+        R_M, R_N = radii(lat)
+        l_n = C_s_n0 @ e.lever_arm_s[0]
+        samples = max(1, int(round(RATE_WINDOW / e.imu_dt)))
+        w_s = (e.dtheta[0, :samples].mean(0) / e.imu_dt - C_s_n0.T @ earth_rate_n(lat)
+               - e.omega_bs_s[0])
+        inputs.append(IndexedGpsInsInputs(
+            t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
+            gps_lat=e.gps_lat[None], gps_lon=e.gps_lon[None], gps_h=e.gps_h[None],
+            gps_v_n=e.gps_v_n[None], gps_heading_sigma=np.full((1, e.t.size), np.nan),
+            lever_arm_b=e.lever_arm_s[None], omega_bs_s=e.omega_bs_s[None],
+            q_b_n0=dcm_to_quat(C_s_n0)[None],
+            v_n0=(e.gps_v_n[0] - C_s_n0 @ np.cross(w_s, e.lever_arm_s[0]))[None],
+            lat0=np.array([lat - l_n[1] / (R_M + h)]),
+            lon0=np.array([lon - l_n[0] / ((R_N + h) * np.cos(lat))]),
+            h0=np.array([h - l_n[2]])))
+    return stack_episodes(inputs, shared=("t", "imu_dt"))
+
+
+# --- metrics -------------------------------------------------------------------------------
+def state_errors(result, episodes: list[Paper004Episode], error_n: np.ndarray) -> np.ndarray:
+    """Estimate minus truth (B, K+1, 9): misalignment, gyro and accelerometer biases."""
+    s, x, K = result.series, result.x, result.t.size
+    return np.concatenate([
+        -error_n,
+        s["gyro_bias"][:, :K] + x[..., EPS] - np.stack([e.gyro_bias for e in episodes])[:, None],
+        s["accel_bias"][:, :K] + x[..., NABLA]
+        - np.stack([e.accel_bias for e in episodes])[:, None]], -1)
+
+
+def run_metrics(run, episodes: list[Paper004Episode], rms_start: float) -> dict:
+    """One filter's numbers over the episodes: RMS of the hull's pitch, roll, heading
+    error over [rms_start, end] (deg; per episode, then RMS over the episodes that did
+    not diverge numerically), heading convergence (s since the fine start: first time
+    after which |heading error| <= 1 deg, the run's length if never; median and 90th
+    percentile), diverged and not-converged fractions, NEES (9 states; mean over the
+    epochs after rms_start, then over episodes), the fraction of epochs whose heading
+    error lies inside the filter's own 3 sigma."""
+    r = run.result
+    t = r.t
+    window = t >= rms_start - 1e-9
+    ok = ~r.diverged
+    err = run.euler_error[:, window]
+    rms = np.sqrt(np.mean(err ** 2, axis=1))                      # (B, 3)
+    fine_t = t - t[0]
+    heading = np.abs(run.error_n[..., 2])
+    bad = heading > HEADING_LIMIT
+    last_bad = np.where(bad.any(1), (bad.shape[1] - 1) - np.argmax(bad[:, ::-1], axis=1), -1)
+    converged = last_bad < bad.shape[1] - 1
+    conv = np.where(last_bad < 0, 0.0,
+                    np.where(converged, fine_t[np.minimum(last_bad + 1, t.size - 1)],
+                             fine_t[-1]))
+    inside = heading <= 3.0 * r.sigma_n[..., 2]
+    nees_window = np.where(np.isfinite(run.nees[:, window]), run.nees[:, window], np.nan)
+    nees_ep = np.nanmean(nees_window, axis=1)
+    sel = ok if ok.any() else np.ones_like(ok)
+    return {
+        "rms_deg": [float(v) for v in np.sqrt(np.mean(rms[sel] ** 2, axis=0)) / deg],
+        "convergence_s": float(np.median(conv)),
+        "convergence_p90_s": float(np.percentile(conv, 90)),
+        "diverged_fraction": float(r.diverged.mean()),
+        "not_converged_fraction": float(np.mean(~converged | r.diverged)),
+        "nees_mean": float(np.nanmean(nees_ep[sel])) if np.isfinite(nees_ep[sel]).any()
+        else None,
+        "nees_dof": 9,
+        "heading_inside_3sigma": float(inside[sel].mean()),
+        "final_heading_error_deg": float(np.sqrt(np.mean(run.error_n[sel, -1, 2] ** 2)) / deg),
+        "ms_per_epoch": r.seconds_per_epoch * 1e3,
+    }
+
+
+def paper004_summary(result: CampaignResult) -> dict:
+    """{"fine": {FILTER: {LEVEL: run_metrics}}, "coarse": {LEVEL: ...}, "settings": ...};
+    LEVEL is the swing level (or "turntable")."""
+    exp = result.experiment
+    level = "turntable" if exp.case == "turntable" else exp.swing
+    end = float(result.runs[0].result.t[-1]) if result.runs else exp.duration
+    rms_start = exp.accuracy_start(end)
+    fine = {run.filter: {level: run_metrics(run, result.episodes, rms_start)}
+            for run in result.runs}
+    coarse = np.stack([e.coarse_error for e in result.episodes])
+    return {"fine": fine,
+            "coarse": {level: {"rms_deg": [float(v) for v in
+                                           np.sqrt(np.mean(coarse ** 2, 0)) / deg],
+                               "max_abs_deg": [float(v) for v in
+                                               np.abs(coarse).max(0) / deg]}},
+            "settings": {"case": exp.case, "swing": exp.swing,
+                         "misalignment": exp.misalignment, "episodes": len(result.seeds),
+                         "rms_window_s": [rms_start, end]}}
+
+
+def format_tables(result: CampaignResult) -> str:
+    """Paper 004's table shape: per filter, RMS pitch/roll/heading over the window,
+    heading convergence time, and the consistency columns."""
+    summary = paper004_summary(result)
+    exp = result.experiment
+    level = next(iter(summary["coarse"]))
+    coarse = summary["coarse"][level]
+    window = summary["settings"]["rms_window_s"]
+    lines = [f"Paper 004, {exp.case} case, swing {level}, {exp.misalignment} start, "
+             f"{len(result.seeds)} episodes; accuracy over "
+             f"[{window[0]:g}, {window[1]:g}] s",
+             f"  GNSS-velocity-aided coarse alignment ({exp.coarse_duration:g} s): RMS error "
+             "E/N/U " + "/".join(f"{v:.2f}" for v in coarse["rms_deg"]) + " deg",
+             f"{'filter':8s}{'pitch':>9s}{'roll':>9s}{'heading':>9s} (RMS, deg)"
+             f"{'conv. s':>9s}{'p90 s':>8s}{'diverged':>9s}{'not conv':>9s}"
+             f"{'NEES/9':>9s}{'in 3sig':>8s}"]
+    for name, per_level in summary["fine"].items():
+        s = per_level[level]
+        nees_text = f"{s['nees_mean']:9.1f}" if s["nees_mean"] is not None else f"{'-':>9s}"
+        flag = "  <- fails" if s["not_converged_fraction"] > 0.5 else ""
+        lines.append(f"{name:8s}" + "".join(f"{v:9.4f}" for v in s["rms_deg"]) + " " * 11
+                     + f"{s['convergence_s']:9.0f}{s['convergence_p90_s']:8.0f}"
+                     f"{s['diverged_fraction']:9.0%}{s['not_converged_fraction']:9.0%}"
+                     + nees_text + f"{s['heading_inside_3sigma']:8.0%}" + flag)
+    return "\n".join(lines)
+
+
+def consistency_plot(result: CampaignResult, out) -> list:
+    """consistency.png: per filter, the RMS heading error over the episodes against the
+    filter's mean 3 sigma, in time."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(result.runs), 1, figsize=(8, 2.2 * len(result.runs)),
+                             sharex=True, squeeze=False)
+    for ax, run in zip(axes[:, 0], result.runs):
+        t = run.result.t
+        ok = ~run.result.diverged if (~run.result.diverged).any() else slice(None)
+        rms = np.sqrt(np.mean(run.error_n[ok, :, 2] ** 2, axis=0)) / deg
+        sigma3 = 3.0 * np.mean(run.result.sigma_n[ok, :, 2], axis=0) / deg
+        ax.semilogy(t, rms, label="RMS heading error")
+        ax.semilogy(t, sigma3, "--", label="filter 3 sigma (mean)")
+        ax.set_ylabel(f"{run.filter}\ndeg")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(loc="upper right")
+    axes[-1, 0].set_xlabel("time, s")
+    fig.suptitle(f"Paper 004, {result.experiment.case}: heading error vs the filter's 3 sigma")
+    fig.tight_layout()
+    path = out / "consistency.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return [path]
+
