@@ -2,7 +2,8 @@
 this machine, split into episode preparation and the filters.
 Run: python benchmarks/bench_campaign.py [EPISODES] [SCENARIO]
 (SCENARIO: ship-sway-rotary by default (paper 003), ship-waves-rotary, figure8-gps
-(paper 001) or static-large-azimuth (paper 002))."""
+(paper 001), static-large-azimuth (paper 002), ring-road-odometer (paper 000) or
+usv-mems-swing (paper 004, moderate swing))."""
 from __future__ import annotations
 
 import os

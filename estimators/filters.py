@@ -321,6 +321,9 @@ FILTERS: dict[str, FilterEntry] = {
                          "state-transformation EKF (004; ALGORITHMS 6.7)", model="st-linear"),
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
+    "ukf-3n": FilterEntry(lambda: UnscentedRule(kappa=None), NoAdaptation,
+                          "unscented KF with kappa = 3 - n (the STUKF's points, on the "
+                          "experiment's own model: 004's classic UKF)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
 }
 SPARSE_GRID_LEVELS = range(1, 7)

@@ -71,7 +71,7 @@ def _bench_epilog() -> str:
             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
             + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
             "car for paper000 and paper001, ship-prescribed or ship-waves for paper003, static-platform "
-            "for paper002")
+            "for paper002, ship-prescribed with an [indexer] and a [gps] table for paper004")
 
 
 def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
@@ -125,7 +125,7 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--filters", help="comma-separated filter names (default: "
                        "sgkf,rdghkf,ckf,ekf for paper000; lckf,rakf,swakf for paper001; "
                        "ekf,ukf,sghkf-2,sghkf-4 for "
-                       "paper002; kf,sakf,makf,imakf for paper003; stukf,stekf,ukf,ekf for "
+                       "paper002; kf,sakf,makf,imakf for paper003; stukf,stekf,ukf-3n,ekf for "
                        "paper004)")
     bench.add_argument("--outage", type=_float_option("--outage", allow_zero=True), metavar="S",
                        help="paper001: a GPS outage of S seconds in the middle of the "

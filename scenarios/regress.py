@@ -36,7 +36,7 @@ CAMPAIGNS = {
                  "filters": ["kf", "sakf", "makf", "imakf", "makf-n", "kf-sway", "sakf-r",
                              "makf-r"],
                  "experiment": {"fine_duration": 300.0}},
-    "paper004": {"episodes": 2, "seed": 13, "filters": ["stukf", "stekf", "ukf", "ekf"],
+    "paper004": {"episodes": 2, "seed": 13, "filters": ["stukf", "stekf", "ukf-3n", "ekf"],
                  "experiment": {"fine_duration": 400.0, "rms_start": 300.0}},
 }
 """The regression campaign of each paper with a campaign: episodes, seed, filters and
