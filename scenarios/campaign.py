@@ -13,7 +13,7 @@ import json
 import os
 from abc import ABC, abstractmethod
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +38,9 @@ class PreparedEpisode(ABC):
     epoch boundaries (truth IMU and body attitude, the gimbal as the encoders read it);
     gyro_bias (3,) rad/s and accel_bias (3,) m/s^2, the drawn constant sensor errors;
     lat (rad) and h (m), the known position. Experiments add their own fields. It saves
-    itself as one .npz, atomically.
+    itself as one .npz, atomically: by default every field as one array (fields annotated
+    int or float come back as numbers); episodes holding structures override ``arrays``
+    and ``from_arrays``.
     """
 
     seed: int
@@ -50,14 +52,16 @@ class PreparedEpisode(ABC):
     lat: float
     h: float
 
-    @abstractmethod
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything needed to rebuild the episode, as arrays."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @classmethod
-    @abstractmethod
     def from_arrays(cls, f: Any) -> "PreparedEpisode":
         """Rebuild from ``arrays()`` (an npz file or a dict)."""
+        number = {"int": int, "float": float}
+        return cls(**{field.name: number.get(field.type, np.asarray)(f[field.name])
+                      for field in fields(cls)})
 
     def save(self, path: Path) -> None:
         tmp = path.with_suffix(".tmp.npz")

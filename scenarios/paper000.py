@@ -241,21 +241,6 @@ class Paper000Episode(PreparedEpisode):
     slips: np.ndarray
     true_v_n: np.ndarray
 
-    _ARRAYS = ("t", "true_v_n", "dtheta", "dv", "distance", "coarse_C_b_n", "v0_body", "C_reference",
-               "coarse_error", "mounting", "lever_arm_b", "slips", "C_s_n_true",
-               "C_b_n_true", "C_s_b", "gyro_bias", "accel_bias")
-    _SCALARS = ("imu_dt", "lat0", "lon0", "h0", "odometer_scale_true", "lat", "h")
-
-    def arrays(self):
-        return {"seed": self.seed, "k_stop": self.k_stop,
-                **{name: getattr(self, name) for name in self._ARRAYS + self._SCALARS}}
-
-    @classmethod
-    def from_arrays(cls, f):
-        return cls(seed=int(f["seed"]), k_stop=int(f["k_stop"]),
-                   **{name: np.asarray(f[name]) for name in cls._ARRAYS},
-                   **{name: float(f[name]) for name in cls._SCALARS})
-
 
 def _rear_path(truth, lever_b: np.ndarray, start: int, end: int) -> float:
     """Length (m) of the path of the point -lever_b from the IMU (chassis frame b) between

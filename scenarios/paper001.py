@@ -247,20 +247,6 @@ class Paper001Episode(PreparedEpisode):
     lever_arm_b: np.ndarray
     coarse_error: np.ndarray
 
-    _FIELDS = ("t", "dtheta", "dv", "gps_lat", "gps_lon", "gps_h", "gps_v_n",
-               "gps_heading_sigma", "true_lat", "true_lon", "true_h", "true_v_n",
-               "lever_arm_b", "coarse_error", "C_s_n_true", "C_b_n_true", "C_s_b",
-               "gyro_bias", "accel_bias")
-
-    def arrays(self):
-        return {"seed": self.seed, "imu_dt": self.imu_dt, "lat": self.lat, "h": self.h,
-                **{name: getattr(self, name) for name in self._FIELDS}}
-
-    @classmethod
-    def from_arrays(cls, f):
-        return cls(seed=int(f["seed"]), imu_dt=float(f["imu_dt"]), lat=float(f["lat"]),
-                   h=float(f["h"]), **{name: np.asarray(f[name]) for name in cls._FIELDS})
-
 
 def prepare_episode(experiment: Paper001Experiment, seed: int,
                     config: ScenarioConfig | None = None) -> Paper001Episode:

@@ -267,21 +267,6 @@ class Paper004Episode(PreparedEpisode):
     coarse_residual: float
     start_draw: np.ndarray
 
-    _FIELDS = ("t", "dtheta", "dv", "gps_lat", "gps_lon", "gps_h", "gps_v_n", "lever_arm_s",
-               "omega_bs_s", "coarse_error", "start_draw", "C_s_n_true", "C_b_n_true",
-               "C_s_b", "gyro_bias", "accel_bias")
-
-    def arrays(self):
-        return {"seed": self.seed, "imu_dt": self.imu_dt, "lat": self.lat, "h": self.h,
-                "coarse_residual": self.coarse_residual,
-                **{name: getattr(self, name) for name in self._FIELDS}}
-
-    @classmethod
-    def from_arrays(cls, f):
-        return cls(seed=int(f["seed"]), imu_dt=float(f["imu_dt"]), lat=float(f["lat"]),
-                   h=float(f["h"]), coarse_residual=float(f["coarse_residual"]),
-                   **{name: np.asarray(f[name]) for name in cls._FIELDS})
-
 
 def encoder_frames(angles: np.ndarray) -> np.ndarray:
     """C_s^b (N, 3, 3) = Rz(outer) Rx(inner) from encoder angles (N, 2) rad."""
