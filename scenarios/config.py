@@ -230,6 +230,9 @@ class ScenarioConfig:
             _check_range("gps.outliers time", when, 0.0, self.duration, "s")
         for when, duration, _ in (self.odometer.slips if self.odometer is not None else ()):
             _check_range("odometer.slips time", when, 0.0, self.duration - duration, "s")
+        if self.gps is not None and self.world == "static-platform":
+            raise ConfigError("[gps]: the static-platform world has no GNSS antenna; remove "
+                              "the table")
         if self.gps is not None and self.world not in PHYSICS_RATE:
             ratio = self.imu_rate / self.gps.rate
             if abs(ratio - round(ratio)) > 1e-9:

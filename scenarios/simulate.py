@@ -113,29 +113,28 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
                else encoder.measure(truth.gimbal_angles, offsets))
     extra = {}
     if config.gps is not None:
-        extra = _gps(config, rngs["gps"], ideal, truth, *antenna)
+        every = np.arange(0, truth.t.size, int(round(config.imu_rate / config.gps.rate)))
+        extra = _gps_fixes(config, rngs["gps"], ideal, truth.t[every], antenna[0][every],
+                           antenna[1][every])
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization,
                    extra=extra)
 
 
-def _gps(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
-         truth: NavigationTruth, antenna_r_t: np.ndarray, antenna_v_t: np.ndarray
-         ) -> dict[str, np.ndarray]:
-    """GPS fixes of a prescribed world from the antenna's plane position (m) and velocity
-    (m/s) at the IMU boundaries (M+1, 3), every imu_rate / gps.rate boundaries."""
-    from models.truth import plane_truth
+def _gps_fixes(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
+               t: np.ndarray, antenna_r_t: np.ndarray, antenna_v_t: np.ndarray
+               ) -> dict[str, np.ndarray]:
+    """The receiver's fixes (``sensors.gps.measure``; error-free when ideal) of the
+    antenna's plane position (m) and velocity (m/s), (N, 3), at the fix times t (N,) s."""
     from sensors import gps as gps_sensor
 
-    spec = config.gps
-    idx = np.arange(0, truth.t.size, int(round(config.imu_rate / spec.rate)))
     plane = TangentPlane(config.latitude, config.longitude, config.height)
-    at = plane_truth(plane, truth.t[idx], antenna_r_t[idx], antenna_v_t[idx],
-                     np.broadcast_to([1.0, 0, 0, 0], (idx.size, 4)),
-                     np.broadcast_to([1.0, 0, 0, 0], (idx.size, 4)), truth.gimbal_angles[idx])
+    lat, lon, h = plane.to_geodetic(antenna_r_t)
+    v_n = np.einsum("...ij,...j->...i", plane.C_t_n(lat, lon), antenna_v_t)
+    spec = config.gps
     if ideal:
         spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0, velocity_sigma=0.0)
-    return gps_sensor.measure(spec, at.t, at.lat, at.lon, at.h, at.v_n, rng)
+    return gps_sensor.measure(spec, t, lat, lon, h, v_n, rng)
 
 
 def _prescribed_truth(world: PrescribedWorld, latitude: float, longitude: float,
@@ -199,7 +198,6 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     from models.attitude import euler_to_quat, quat_mul, quat_to_dcm
     from models.truth import gravity_t, plane_truth
     from models.world import SmoothRun
-    from sensors import gps as gps_sensor
 
     rngs = episode_rngs(seed)
     motion = config.motion
@@ -248,15 +246,9 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
             run.wheel_angles[idx][:, 2:4], scale, truth.t), "odo_scale_error": np.array(scale),
             "odo_mounting": np.array([odo.mounting_pitch, odo.mounting_heading])})
     if config.gps is not None:
-        spec = config.gps
-        g_idx = np.arange(0, run.t.size, int(round(1.0 / (spec.rate * run.dt))))
+        g_idx = np.arange(0, run.t.size, int(round(1.0 / (config.gps.rate * run.dt))))
         antenna, v_antenna = run.point_kinematics(motion.gps_antenna_b, g_idx)
-        at = plane_truth(plane, run.t[g_idx], antenna, v_antenna, run.quat[g_idx],
-                         run.quat[g_idx], gimbal[g_idx])
-        if ideal:
-            spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
-                           velocity_sigma=0.0)
-        extra.update(gps_sensor.measure(spec, at.t, at.lat, at.lon, at.h, at.v_n, rngs["gps"]))
+        extra.update(_gps_fixes(config, rngs["gps"], ideal, run.t[g_idx], antenna, v_antenna))
     encoder = config.encoder
     reading = (truth.gimbal_angles.copy() if ideal or not motion.has_gimbal else
                encoder.measure(truth.gimbal_angles, encoder.draw_offsets(rngs["encoder"])))
