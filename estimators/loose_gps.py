@@ -29,8 +29,8 @@ import numpy as np
 from estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
 from estimators.strapdown import AidedInsInputs
 from models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
-from models.earth import (C_n_e, OMEGA_IE, ecef_to_geodetic, geodetic_to_ecef,
-                          normal_gravity)
+from models.earth import (C_n_e, OMEGA_IE, earth_rate_n, ecef_to_geodetic,
+                          geodetic_to_ecef, normal_gravity, radii)
 
 LAYOUT = StateLayout({"position": slice(0, 3), "velocity": slice(3, 6),
                       "misalignment": slice(6, 9), "gyro_bias": slice(9, 12),
@@ -42,6 +42,29 @@ HEADING = 6
 OMEGA_IE_E = np.array([0.0, 0.0, OMEGA_IE])
 RATE_WINDOW = 0.1
 """The body rate in the lever-arm velocity is the mean over the epoch's last 0.1 s, s."""
+
+
+def ins_start_at_fix(C_b_n: np.ndarray, lat: float, lon: float, h: float, v_n: np.ndarray,
+                     lever_arm_b: np.ndarray, dtheta: np.ndarray, dt: float,
+                     omega_bs_b: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """An INS start for one episode at the IMU, from a GNSS fix of the antenna (lat, lon
+    rad; h m; v_n (3,) m/s ENU) with the attitude C_b_n (3, 3) and the lever arm
+    lever_arm_b (3,) m, IMU to antenna in the IMU frame: position less C l, velocity less
+    C (w_nb x l), w_nb from the first RATE_WINDOW s of gyro increments dtheta (S, 3) rad of
+    interval dt s, less the earth rate and, for an IMU turning on its carrier, its rate
+    omega_bs_b (3,) rad/s relative to the carrier. Returns ``AidedInsInputs``' q_b_n0,
+    v_n0, lat0, lon0, h0 as (1, ...) arrays."""
+    R_M, R_N = radii(lat)
+    l_n = C_b_n @ lever_arm_b
+    samples = max(1, int(round(RATE_WINDOW / dt)))
+    w_b = dtheta[:samples].mean(0) / dt - C_b_n.T @ earth_rate_n(lat)
+    if omega_bs_b is not None:
+        w_b = w_b - omega_bs_b
+    return {"q_b_n0": dcm_to_quat(C_b_n)[None],
+            "v_n0": (v_n - C_b_n @ np.cross(w_b, lever_arm_b))[None],
+            "lat0": np.array([lat - l_n[1] / (R_M + h)]),
+            "lon0": np.array([lon - l_n[0] / ((R_N + h) * np.cos(lat))]),
+            "h0": np.array([h - l_n[2]])}
 
 
 @dataclass(frozen=True)

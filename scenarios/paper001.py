@@ -19,12 +19,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from estimators.inertial_frame import static_coarse_alignment, velocity_aided_alignment
-from estimators.loose_gps import (ACCEL, GYRO, PHI, POSITION, RATE_WINDOW, VELOCITY,
-                                  GpsInsInputs, LooselyCoupledModel, LooseTuning, heading_cw)
+from estimators.loose_gps import (ACCEL, GYRO, PHI, POSITION, VELOCITY,
+                                  GpsInsInputs, LooselyCoupledModel, LooseTuning, heading_cw,
+                                  ins_start_at_fix)
 from estimators.metrics import misalignment, nees
 from estimators.model import stack_episodes, wrap_angle
-from models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm
-from models.earth import C_n_e, earth_rate_n, geodetic_to_ecef, radii
+from models.attitude import quat_to_dcm, rotvec_to_dcm
+from models.earth import C_n_e, geodetic_to_ecef
 from models.units import arcmin, deg
 from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode)
 from scenarios.config import ConfigError, ScenarioConfig
@@ -303,19 +304,13 @@ def model_inputs(episodes: list[Paper001Episode], start_error: np.ndarray) -> Gp
     inputs = []
     for e, phi in zip(episodes, start_error):
         C_b_n0 = rotvec_to_dcm(-phi) @ e.C_s_n_true[0]
-        lat, lon, h = e.gps_lat[0], e.gps_lon[0], e.gps_h[0]
-        R_M, R_N = radii(lat)
-        l_n = C_b_n0 @ e.lever_arm_b
-        samples = max(1, int(round(RATE_WINDOW / e.imu_dt)))
-        w_b = e.dtheta[0, :samples].mean(0) / e.imu_dt - C_b_n0.T @ earth_rate_n(lat)
         inputs.append(GpsInsInputs(
             t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
             gps_lat=e.gps_lat[None], gps_lon=e.gps_lon[None], gps_h=e.gps_h[None],
             gps_v_n=e.gps_v_n[None], gps_heading_sigma=e.gps_heading_sigma[None],
-            lever_arm_b=e.lever_arm_b[None], q_b_n0=dcm_to_quat(C_b_n0)[None],
-            v_n0=(e.gps_v_n[0] - C_b_n0 @ np.cross(w_b, e.lever_arm_b))[None], lat0=np.array([lat - l_n[1] / (R_M + h)]),
-            lon0=np.array([lon - l_n[0] / ((R_N + h) * np.cos(lat))]),
-            h0=np.array([h - l_n[2]])))
+            lever_arm_b=e.lever_arm_b[None],
+            **ins_start_at_fix(C_b_n0, e.gps_lat[0], e.gps_lon[0], e.gps_h[0], e.gps_v_n[0],
+                               e.lever_arm_b, e.dtheta[0], e.imu_dt)))
     return stack_episodes(inputs, shared=("t", "imu_dt"))
 
 

@@ -27,13 +27,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from estimators.inertial_frame import velocity_aided_alignment
-from estimators.loose_gps import RATE_WINDOW
+from estimators.loose_gps import RATE_WINDOW, ins_start_at_fix
 from estimators.metrics import misalignment, nees
 from estimators.model import stack_episodes
 from estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
                                         RotationVectorGnssModel, RotationVectorTuning)
-from models.attitude import dcm_to_quat, quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
-from models.earth import earth_rate_n, radii
+from models.attitude import quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
 from models.units import deg, deg_per_h, mg
 from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode
 from scenarios.config import ConfigError, ScenarioConfig
@@ -332,22 +331,13 @@ def model_inputs(episodes: list[Paper004Episode], start_error: np.ndarray
     inputs = []
     for e, phi in zip(episodes, start_error):
         C_s_n0 = rotvec_to_dcm(-phi) @ e.C_s_n_true[0]
-        lat, lon, h = e.gps_lat[0], e.gps_lon[0], e.gps_h[0]
-        R_M, R_N = radii(lat)
-        l_n = C_s_n0 @ e.lever_arm_s[0]
-        samples = max(1, int(round(RATE_WINDOW / e.imu_dt)))
-        w_s = (e.dtheta[0, :samples].mean(0) / e.imu_dt - C_s_n0.T @ earth_rate_n(lat)
-               - e.omega_bs_s[0])
         inputs.append(IndexedGpsInsInputs(
             t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
             gps_lat=e.gps_lat[None], gps_lon=e.gps_lon[None], gps_h=e.gps_h[None],
             gps_v_n=e.gps_v_n[None], gps_heading_sigma=np.full((1, e.t.size), np.nan),
             lever_arm_b=e.lever_arm_s[None], omega_bs_s=e.omega_bs_s[None],
-            q_b_n0=dcm_to_quat(C_s_n0)[None],
-            v_n0=(e.gps_v_n[0] - C_s_n0 @ np.cross(w_s, e.lever_arm_s[0]))[None],
-            lat0=np.array([lat - l_n[1] / (R_M + h)]),
-            lon0=np.array([lon - l_n[0] / ((R_N + h) * np.cos(lat))]),
-            h0=np.array([h - l_n[2]])))
+            **ins_start_at_fix(C_s_n0, e.gps_lat[0], e.gps_lon[0], e.gps_h[0], e.gps_v_n[0],
+                               e.lever_arm_s[0], e.dtheta[0], e.imu_dt, e.omega_bs_s[0])))
     return stack_episodes(inputs, shared=("t", "imu_dt"))
 
 
