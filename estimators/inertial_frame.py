@@ -83,9 +83,14 @@ def gimbal_rate_s(gimbal_angles: np.ndarray, dt: float, span: int = 10) -> np.nd
     rates[span:-span] = (angles[2 * span:] - angles[:-2 * span]) / (2 * span * dt)
     rates[:span] = (angles[span] - angles[0]) / (span * dt)
     rates[-span:] = (angles[-1] - angles[-1 - span]) / (span * dt)
-    outer_rate, inner_rate = rates[:, 0], rates[:, 1]
-    # omega_bs^s = Rx(inner)^T [0, 0, outer_rate] + [inner_rate, 0, 0]
-    inner = angles[:, 1]
+    return gimbal_rate_in_sensor(rates, angles[:, 1])
+
+
+def gimbal_rate_in_sensor(angle_rates: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """omega_bs^s (N, 3) rad/s of the double-axis gimbal from its angle rates (N, 2) rad/s
+    (outer, inner) at inner angles (N,) rad:
+    omega_bs^s = Rx(inner)^T [0, 0, outer_rate] + [inner_rate, 0, 0]."""
+    outer_rate, inner_rate = angle_rates[:, 0], angle_rates[:, 1]
     return np.stack([inner_rate, np.sin(inner) * outer_rate, np.cos(inner) * outer_rate], -1)
 
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.inertial_frame import velocity_aided_alignment
+from estimators.inertial_frame import gimbal_rate_in_sensor, velocity_aided_alignment
 from estimators.loose_gps import RATE_WINDOW, ins_start_at_fix
-from estimators.metrics import misalignment, nees
+from estimators.metrics import convergence_time, misalignment, nees
 from estimators.model import stack_episodes
 from estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
                                         RotationVectorGnssModel, RotationVectorTuning)
@@ -303,10 +303,8 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
         raise ConfigError("paper004: the filter epochs must fall on GNSS fixes (latency 0)")
     window = max(1, int(round(RATE_WINDOW / dt)))
     enc = episode.gimbal_encoder
-    rates = (enc[idx] - enc[idx - window]) / (window * dt)
-    inner = enc[idx, 1]
-    omega_bs_s = np.stack([rates[:, 1], np.sin(inner) * rates[:, 0],
-                           np.cos(inner) * rates[:, 0]], -1)
+    omega_bs_s = gimbal_rate_in_sensor((enc[idx] - enc[idx - window]) / (window * dt),
+                                       enc[idx, 1])
     draw = np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, 3)
     return Paper004Episode(
         seed=seed, t=t, imu_dt=dt,
@@ -367,11 +365,8 @@ def run_metrics(run, episodes: list[Paper004Episode], rms_start: float) -> dict:
     err = run.euler_error[:, window]
     rms = np.sqrt(np.mean(err ** 2, axis=1))                      # (B, 3)
     heading = np.abs(run.error_n[..., 2])
-    bad = heading > HEADING_LIMIT
-    last_bad = np.where(bad.any(1), (bad.shape[1] - 1) - np.argmax(bad[:, ::-1], axis=1), -1)
-    converged = last_bad < bad.shape[1] - 1
-    conv = np.where(last_bad < 0, t[0],
-                    np.where(converged, t[np.minimum(last_bad + 1, t.size - 1)], t[-1]))
+    conv = convergence_time(t, heading, HEADING_LIMIT)
+    converged = heading[:, -1] <= HEADING_LIMIT
     inside = heading <= 3.0 * r.sigma_n[..., 2]
     nees_window = np.where(np.isfinite(run.nees[:, window]), run.nees[:, window], np.nan)
     nees_ep = np.nanmean(nees_window, axis=1)
