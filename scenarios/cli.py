@@ -219,6 +219,9 @@ def _check_writable(path_text: str, option: str) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
     from scenarios.campaign import run_campaign
     from scenarios.config import ConfigError
     from scenarios.experiments import experiment
@@ -242,63 +245,37 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                 raise ConfigError(f"--{option.replace('_', '-')} exists for {paper} only, "
                                   f"not {args.paper}")
             settings[option] = value
+    levels = [None]                  # one campaign; paper004 --swing all: one per level
     if settings.get("swing") == "all":
-        return _bench_levels(args, settings)
-    exp = experiment(args.paper, args.setup, **settings)
-    filters = (list(exp.default_filters) if args.filters is None
-               else [f.strip() for f in args.filters.split(",") if f.strip()])
-    if not filters:
-        raise ConfigError("--filters is empty; give at least one filter name")
+        from scenarios.paper004 import SWING_LEVELS
+        levels = list(SWING_LEVELS)
     episodes = args.episodes or DEFAULT_EPISODES[args.paper]
-    start = time.perf_counter()
-    result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
-                          out_dir=args.out, resume=args.resume, workers=args.workers,
-                          executor=args.executor, address=args.address, force=args.force)
-    elapsed = time.perf_counter() - start
-    print(format_tables(result))
-    for path in write_outputs(result, args.out, args.json):
-        print(f"wrote {path}")
-    print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s) in "
-          f"{elapsed:.1f} s")
-    return 0
-
-
-def _bench_levels(args: argparse.Namespace, settings: dict) -> int:
-    """paper004 --swing all: one campaign per swing level (in DIR/LEVEL with --out), the
-    JSON summaries merged into one {"fine": {FILTER: {LEVEL: ...}}, "coarse": ...}."""
-    import json
-    from pathlib import Path
-
-    from scenarios.experiments import experiment
-    from scenarios.paper004 import SWING_LEVELS
-    from scenarios.report import format_tables, write_outputs
-    from scenarios.campaign import run_campaign
-
-    merged: dict = {"fine": {}, "coarse": {}, "settings": {}}
-    episodes = args.episodes or DEFAULT_EPISODES[args.paper]
-    start = time.perf_counter()
-    for level in SWING_LEVELS:
-        exp = experiment(args.paper, args.setup, **{**settings, "swing": level})
+    summaries, elapsed = [], 0.0
+    for level in levels:
+        exp = experiment(args.paper, args.setup,
+                         **(settings if level is None else {**settings, "swing": level}))
         filters = (list(exp.default_filters) if args.filters is None
                    else [f.strip() for f in args.filters.split(",") if f.strip()])
-        out = None if args.out is None else str(Path(args.out) / level)
+        if not filters:
+            raise ConfigError("--filters is empty; give at least one filter name")
+        out = args.out if level is None or args.out is None else str(Path(args.out) / level)
+        start = time.perf_counter()
         result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
                               out_dir=out, resume=args.resume, workers=args.workers,
                               executor=args.executor, address=args.address,
                               force=args.force)
+        elapsed += time.perf_counter() - start
         print(format_tables(result))
-        for path in write_outputs(result, out, None):
+        for path in write_outputs(result, out, args.json if level is None else None):
             print(f"wrote {path}")
-        summary = result.summary()
-        for name, per_level in summary["fine"].items():
-            merged["fine"].setdefault(name, {}).update(per_level)
-        merged["coarse"].update(summary["coarse"])
-        merged["settings"] = {**summary["settings"], "swing": list(SWING_LEVELS)}
-    if args.json:
-        Path(args.json).write_text(json.dumps(merged, indent=2))
+        summaries.append(result.summary())
+    if len(levels) > 1 and args.json:
+        from scenarios.paper004 import merge_levels
+        Path(args.json).write_text(json.dumps(merge_levels(summaries), indent=2))
         print(f"wrote {args.json}")
-    print(f"{len(SWING_LEVELS)} swing levels x {episodes} episodes in "
-          f"{time.perf_counter() - start:.1f} s")
+    print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s)"
+          + (f" x {len(levels)} swing levels" if len(levels) > 1 else "")
+          + f" in {elapsed:.1f} s")
     return 0
 
 

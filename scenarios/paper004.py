@@ -407,6 +407,19 @@ def paper004_summary(result: CampaignResult) -> dict:
                          "rms_window_s": [rms_start, end]}}
 
 
+def merge_levels(summaries: list[dict]) -> dict:
+    """One JSON of several swing levels' ``paper004_summary``s: {"fine": {FILTER: {LEVEL:
+    ...}}, "coarse": {LEVEL: ...}, "settings": the last one's, with every level named}."""
+    merged: dict = {"fine": {}, "coarse": {}}
+    for summary in summaries:
+        for name, per_level in summary["fine"].items():
+            merged["fine"].setdefault(name, {}).update(per_level)
+        merged["coarse"].update(summary["coarse"])
+    merged["settings"] = {**summaries[-1]["settings"],
+                          "swing": [s["settings"]["swing"] for s in summaries]}
+    return merged
+
+
 def format_tables(result: CampaignResult) -> str:
     """Paper 004's table shape: per filter, RMS pitch/roll/heading over the window,
     heading convergence time, and the consistency columns."""

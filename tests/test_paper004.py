@@ -126,3 +126,20 @@ def test_swing_levels_and_cases_reach_the_scenario():
     consistency = Paper004Experiment(case="consistency").scenario_config()
     assert consistency.imu.accel.bias_fixed[0] == pytest.approx(4.5e-3 * 9.80665, rel=1e-3)
     assert math.isclose(consistency.duration, 2000.0)
+
+
+def test_swing_levels_merge_into_one_json(campaign):
+    """--swing all: each level's summary nests under its level, per filter."""
+    from copy import deepcopy
+    from scenarios.paper004 import merge_levels
+    moderate = paper004_summary(campaign)
+    severe = deepcopy(moderate)
+    for per_level in severe["fine"].values():
+        per_level["severe"] = per_level.pop("moderate")
+    severe["coarse"]["severe"] = severe["coarse"].pop("moderate")
+    severe["settings"]["swing"] = "severe"
+    merged = merge_levels([moderate, severe])
+    assert set(merged["fine"]["stukf"]) == {"moderate", "severe"}
+    assert merged["fine"]["ekf"]["moderate"] == moderate["fine"]["ekf"]["moderate"]
+    assert list(merged["coarse"]) == ["moderate", "severe"]
+    assert merged["settings"]["swing"] == ["moderate", "severe"]
