@@ -59,7 +59,7 @@ class ShipSwayMotion(GimbalRates):
 
     @property
     def has_gimbal(self) -> bool:
-        return self.indexer is not None or GimbalRates.has_gimbal.fget(self)
+        return self.indexer is not None or super().has_gimbal
 
     def hull_yaw_accel(self, t: np.ndarray) -> np.ndarray:
         """The hull's angular acceleration about its z axis (N,) rad/s^2 (what a rotor on
@@ -80,11 +80,8 @@ class ShipSwayMotion(GimbalRates):
         hull = replace(self, linear_phase=(0.0, 0.0, 0.0))
         horizon = 600.0 * max(1, int(np.ceil(float(t.max()) / 600.0 - 1e-9)))
         servo = cached_indexer(self.indexer, horizon, hull)
-        angle, rate, accel = servo.state(t)
-        out = [zeros.copy() for _ in range(3)]
-        for column, value in zip(out, (angle, rate, accel)):
-            column[:, 0] = value
-        return tuple(out)
+        outer_only = lambda v: np.stack([v, np.zeros_like(v)], -1)   # noqa: E731
+        return tuple(outer_only(v) for v in servo.state(t))
 
     def euler(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hull Euler angles [pitch, roll, yaw], their first and second derivatives; (N, 3)."""

@@ -385,9 +385,6 @@ def _indexer(table: dict[str, Any]) -> IndexerSpec:
             table["schedule"] = tuple((float(t), float(a) * deg) for t, a in table["schedule"])
         except (TypeError, ValueError):
             raise ConfigError("indexer.schedule must be a list of [time_s, angle_deg] rows")
-    if "stops" in table:
-        stops = table["stops"]
-        table["stops"] = stops if isinstance(stops, tuple) else (stops,)
     return _dataclass_from(IndexerSpec, table, "indexer")
 
 
