@@ -180,10 +180,9 @@ class Paper004Experiment(Experiment):
         receiver's sigmas, P0 attitude from the start's row of MISALIGNMENTS."""
         imu = ImuTuning.from_spec(config.imu)
         gps = config.gps
-        sigma = (TURNTABLE["sigma"] if self.case == "turntable"
-                 else MISALIGNMENTS[self.misalignment][1])
         return RotationVectorTuning(
-            attitude_sigma=tuple(s * deg for s in sigma), velocity_sigma=self.velocity_sigma,
+            attitude_sigma=tuple(float(s) for s in self.attitude_sigma()),
+            velocity_sigma=self.velocity_sigma,
             position_sigma=self.position_sigma,
             gyro_bias_sigma=max(imu.gyro_bias_sigma, 0.1 * deg_per_h),
             accel_bias_sigma=max(imu.accel_bias_sigma, 0.1 * mg),
@@ -215,6 +214,8 @@ class Paper004Experiment(Experiment):
                                        variant or "classic")
 
     def attitude_sigma(self):
+        """P0 attitude sigmas E, N, U (3,) rad: the start's row of MISALIGNMENTS, or the
+        turntable's."""
         sigma = (TURNTABLE["sigma"] if self.case == "turntable"
                  else MISALIGNMENTS[self.misalignment][1])
         return np.deg2rad(sigma)
