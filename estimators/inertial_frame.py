@@ -18,6 +18,7 @@ from estimators.strapdown import compensate
 from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
                              rotvec_to_quat)
 from models.earth import OMEGA_IE, normal_gravity
+from models.world import gimbal_rate_in_sensor  # noqa: F401  (re-exported)
 
 
 # --- earth rotation in the inertial frame ------------------------------------------------
@@ -84,14 +85,6 @@ def gimbal_rate_s(gimbal_angles: np.ndarray, dt: float, span: int = 10) -> np.nd
     rates[:span] = (angles[span] - angles[0]) / (span * dt)
     rates[-span:] = (angles[-1] - angles[-1 - span]) / (span * dt)
     return gimbal_rate_in_sensor(rates, angles[:, 1])
-
-
-def gimbal_rate_in_sensor(angle_rates: np.ndarray, inner: np.ndarray) -> np.ndarray:
-    """omega_bs^s (N, 3) rad/s of the double-axis gimbal from its angle rates (N, 2) rad/s
-    (outer, inner) at inner angles (N,) rad:
-    omega_bs^s = Rx(inner)^T [0, 0, outer_rate] + [inner_rate, 0, 0]."""
-    outer_rate, inner_rate = angle_rates[:, 0], angle_rates[:, 1]
-    return np.stack([inner_rate, np.sin(inner) * outer_rate, np.cos(inner) * outer_rate], -1)
 
 
 def body_frame_integrals(dtheta: np.ndarray, dv: np.ndarray, gimbal_angles: np.ndarray | None,

@@ -138,6 +138,11 @@ class IndexerMotion:
         t = np.asarray(t, dtype=float)
         return self.spline(t), self.spline(t, 1), self.spline(t, 2)
 
+    def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The indexer as the outer axis of the double-axis gimbal (``GimbalMotion``, the
+        inner axis at rest): angles, rates, accelerations (N, 2) at times t (N,) s."""
+        return tuple(np.stack([v, np.zeros_like(v)], -1) for v in self.state(t))
+
 
 def simulate_indexer(spec: IndexerSpec, duration: float,
                      hull_yaw_accel: Callable[[np.ndarray], np.ndarray] | None = None

@@ -71,17 +71,12 @@ class ShipSwayMotion(GimbalRates):
         (outer, inner), at times t (N,) s: the indexer servo's simulated motion (run once
         per process over [0, max t] rounded up to whole 600 s, so that a render at one time
         and the episode see one motion) or the constant rates."""
-        t = np.asarray(t, dtype=float)
-        zeros = np.zeros((t.size, 2))
         if self.indexer is None:
-            rates = np.array([self.gimbal_outer_rate, self.gimbal_inner_rate])
-            return self.gimbal_angles(t), zeros + rates, zeros
+            return super().gimbal_state(t)
         # The servo is excited by the hull's turning only: one run serves every linear phase.
         hull = replace(self, linear_phase=(0.0, 0.0, 0.0))
-        horizon = 600.0 * max(1, int(np.ceil(float(t.max()) / 600.0 - 1e-9)))
-        servo = cached_indexer(self.indexer, horizon, hull)
-        outer_only = lambda v: np.stack([v, np.zeros_like(v)], -1)   # noqa: E731
-        return tuple(outer_only(v) for v in servo.state(t))
+        horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
+        return cached_indexer(self.indexer, horizon, hull).gimbal_state(t)
 
     def euler(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hull Euler angles [pitch, roll, yaw], their first and second derivatives; (N, 3)."""
@@ -126,26 +121,60 @@ class ShipSwayMotion(GimbalRates):
         return A * np.sin(arg), A * w * np.cos(arg), -A * w * w * np.sin(arg)
 
 
+REFERENCE_HULL = ((18.0, 90.0, 8.0), 5.01e6, (3.41e9, 1.62e8, 3.52e9))
+"""Paper 003's ship: beam, length, depth (m), mass (kg) and principal inertia about its
+centre of mass (kg m^2, R, F, U). Other hulls scale it as boxes of the same density."""
+
+
+def hull_mass_properties(hull_size: tuple[float, float, float]
+                         ) -> tuple[float, tuple[float, float, float]]:
+    """Mass (kg) and principal inertia (kg m^2, about R, F, U) of a hull of size (beam,
+    length, depth, m): the reference hull's scaled by the volume and, per axis, by the
+    box's sum of squared dimensions across it (exact for the reference)."""
+    (b0, l0, d0), mass0, inertia0 = REFERENCE_HULL
+    b, l, d = hull_size
+    mass = mass0 * (b * l * d) / (b0 * l0 * d0)
+    ratio = ((l * l + d * d) / (l0 * l0 + d0 * d0), (b * b + d * d) / (b0 * b0 + d0 * d0),
+             (b * b + l * l) / (b0 * b0 + l0 * l0))
+    return mass, tuple(i * mass / mass0 * r for i, r in zip(inertia0, ratio))
+
+
 def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
               antenna_b: tuple[float, float, float] | None = None,
-              hull_size: tuple[float, float, float] = (18.0, 90.0, 8.0)) -> str:
+              hull_size: tuple[float, float, float] = REFERENCE_HULL[0],
+              indexer: IndexerSpec | None = None) -> str:
     """MJCF of the hull (body "carrier"), the double-axis gimbal, the IMU site and the
     GNSS antenna site "antenna" (at antenna_b, m; None: at the IMU) with its position and
     velocity sensors.
 
-    Hull dimensions (beam, length, depth, m) are visual only; the hull origin is the sway
-    centre. A floating hull
-    (``floating``) has its centre of mass there, about which a free body turns (the
-    inertia of an 18 x 90 x 8 m box of 5010 t); the prescribed hull's mass properties
-    play no part.
+    The hull origin is the sway centre. A floating hull (``floating``) has its centre of
+    mass there, about which a free body turns (``hull_mass_properties`` of hull_size:
+    beam, length, depth, m); the prescribed hull's mass properties play no part. With
+    ``indexer`` on a floating hull the outer gimbal axis is the indexer: a rotor of the
+    spec's inertia driven by a position actuator "indexer" (kp = I w_n^2, kv = 2 zeta w_n
+    I; ctrl: the commanded angle, rad), the inner axis nearly massless.
     """
     x, y, z = lever_arm_b
     ax, ay, az = lever_arm_b if antenna_b is None else antenna_b
     beam, length, depth = (0.5 * v for v in hull_size)
     bridge = (min(7.0, 0.4 * beam), min(6.0, 0.15 * length), min(5.0, 0.6 * depth))
     scale = min(1.0, beam / 9.0)
-    inertial = ('<inertial pos="0 0 0" mass="5.01e6" diaginertia="3.41e9 1.62e8 3.52e9"/>'
-                if floating else "")
+    inertial = actuator = ""
+    outer_mass = inner_mass = ""
+    if floating:
+        mass, inertia = hull_mass_properties(hull_size)
+        inertial = (f'<inertial pos="0 0 0" mass="{mass!r}" '
+                    f'diaginertia="{inertia[0]!r} {inertia[1]!r} {inertia[2]!r}"/>')
+        if indexer is not None:
+            rotor = indexer.rotor_inertia
+            outer_mass = (f'<inertial pos="0 0 0" mass="1" '
+                          f'diaginertia="{rotor / 2!r} {rotor / 2!r} {rotor!r}"/>')
+            inner_mass = '<inertial pos="0 0 0" mass="1e-3" diaginertia="1e-7 1e-7 1e-7"/>'
+            w_n = 2 * np.pi * indexer.natural_frequency
+            total = rotor + 1e-7
+            actuator = (f'<actuator><position name="indexer" joint="gimbal_outer" '
+                        f'kp="{total * w_n ** 2!r}" '
+                        f'kv="{2 * indexer.damping_ratio * w_n * total!r}"/></actuator>')
     return f"""
 <mujoco model="ship-sway-rotary">
   <option timestep="0.005" integrator="implicitfast"/>
@@ -169,10 +198,12 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
       <site name="antenna" pos="{ax:g} {ay:g} {az:g}" size="{0.1 * scale:g}"/>
       <body name="gimbal_outer" pos="{x:g} {y:g} {z:g}">
         <joint name="gimbal_outer" type="hinge" axis="0 0 1"/>
+        {outer_mass}
         <geom type="cylinder" size="{0.6 * scale:g} {0.05 * scale:g}" rgba=".9 .5 .1 1"
               contype="0" conaffinity="0" mass="20"/>
         <body name="gimbal_inner">
           <joint name="gimbal_inner" type="hinge" axis="1 0 0"/>
+          {inner_mass}
           <geom type="box" size="{0.25 * scale:g} {0.25 * scale:g} {0.25 * scale:g}"
                 rgba=".2 .8 .3 1" contype="0" conaffinity="0" mass="10"/>
           <site name="imu" size="0.05"/>
@@ -180,6 +211,7 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
       </body>
     </body>
   </worldbody>
+  {actuator}
 {IMU_SENSORS_MJCF}
 {ANTENNA_SENSORS_MJCF}
 </mujoco>

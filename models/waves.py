@@ -19,11 +19,16 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from models.ship import ship_mjcf
+from scipy.interpolate import make_interp_spline
+
+from models.indexer import IndexerMotion, IndexerSpec
+from models.ship import REFERENCE_HULL, ship_mjcf
 from models.units import deg
 from models.world import DiscreteRun, GimbalRates
 
 RHO_G = 1025.0 * 9.81
+WAVE_TIMESTEP = 0.002
+"""MuJoCo's step of the wave-driven hull, s (500 Hz, ``scenarios.config.PHYSICS_RATE``)."""
 
 
 @dataclass(frozen=True)
@@ -35,7 +40,11 @@ class WaveShipMotion(GimbalRates):
     wave_direction (direction the waves travel, CCW from north); components: number of
     wave frequencies; heave/roll/pitch natural periods and damping ratios; heading: the
     autopilot's yaw (PSINS, CCW). lever_arm_b: IMU from the hull origin (R, F, U);
-    gimbal rates as in ``ShipSwayMotion``.
+    gimbal rates as in ``ShipSwayMotion``; indexer: a single-axis azimuth indexer
+    (``models.indexer``) on the outer gimbal axis, its servo a MuJoCo actuator in the
+    floating hull's model (the rates 0 then); antenna_b: the GNSS antenna from the hull
+    origin (R, F, U), m (None: at the IMU); hull_size: beam, length, depth, m (the mass
+    properties scale with it, ``models.ship.hull_mass_properties``).
     """
 
     significant_wave_height: float = 1.5
@@ -51,9 +60,33 @@ class WaveShipMotion(GimbalRates):
     lever_arm_b: tuple[float, float, float] = (10.0, 30.0, 10.0)
     gimbal_outer_rate: float = 6 * deg
     gimbal_inner_rate: float = 18 * deg
+    indexer: IndexerSpec | None = None
+    antenna_b: tuple[float, float, float] | None = None
+    hull_size: tuple[float, float, float] = REFERENCE_HULL[0]
+
+    @property
+    def has_gimbal(self) -> bool:
+        return self.indexer is not None or super().has_gimbal
+
+    @property
+    def gps_antenna_b(self) -> tuple[float, float, float]:
+        """The GNSS antenna on the hull (R, F, U), m."""
+        return self.lever_arm_b if self.antenna_b is None else self.antenna_b
 
     def check(self) -> None:
         """Raise ValueError naming the field for values outside their range."""
+        if self.indexer is not None:
+            if self.gimbal_outer_rate or self.gimbal_inner_rate:
+                raise ValueError("motion: with an [indexer] the gimbal rates "
+                                 "(gimbal_outer_rate_deg_s, gimbal_inner_rate_deg_s) must be 0")
+            if abs(self.indexer.servo_step - WAVE_TIMESTEP) > 1e-12:
+                raise ValueError(f"indexer.servo_step = {self.indexer.servo_step:g} s: on the "
+                                 f"wave-driven hull the servo steps with the physics, "
+                                 f"{WAVE_TIMESTEP:g} s")
+        for i, size in enumerate(self.hull_size):
+            if not 0.5 <= size <= 500.0:
+                raise ValueError(f"motion.hull_size[{i}] = {size:g} m is out of range "
+                                 "[0.5, 500]")
         for name, low, high in (("significant_wave_height", 0.0, 15.0),
                                 ("peak_period", 2.0, 25.0), ("heave_period", 2.0, 30.0),
                                 ("roll_period", 2.0, 30.0), ("pitch_period", 2.0, 30.0),
@@ -149,7 +182,7 @@ class WaveShipWorld:
     a hull turns smoothly, and its piecewise-constant rates would read as coning."""
 
     def __init__(self, motion: WaveShipMotion, rng: np.random.Generator,
-                 timestep: float = 0.002, force_period: int = 1) -> None:
+                 timestep: float = WAVE_TIMESTEP, force_period: int = 1) -> None:
         """timestep: MuJoCo step, s (several per IMU sample keep the discrete rotation
         smooth for the strapdown's coning term); force_period: steps between updates of
         the hydrodynamic wrench (held in between). Every step by default: a wrench held
@@ -157,7 +190,8 @@ class WaveShipWorld:
         sculling term rectifies (0.63 mm/s over 120 s, against 0.005 mm/s)."""
         self.motion = motion
         self.force_period = force_period
-        xml = ship_mjcf(motion.lever_arm_b, floating=True).replace(
+        xml = ship_mjcf(motion.lever_arm_b, floating=True, antenna_b=motion.antenna_b,
+                        hull_size=motion.hull_size, indexer=motion.indexer).replace(
             '<option timestep="0.005" integrator="implicitfast"/>',
             f'<option timestep="{timestep:g}" integrator="implicitfast"/>')
         self.model = mujoco.MjModel.from_xml_string(xml)
@@ -178,8 +212,8 @@ class WaveShipWorld:
         # stiffness and damping from the natural periods and the damping ratio.
         modal = np.array([mass, inertia[0], inertia[1]])
         w_n = np.array([w["heave"], w["pitch"], w["roll"]])
-        self._k = modal * w_n ** 2
-        self._c = 2 * zeta * modal * w_n
+        self._k = (modal * w_n ** 2).tolist()
+        self._c = (2 * zeta * modal * w_n).tolist()
         # Weak horizontal restoring (60 s period) and a heading autopilot (10 s), both
         # critically damped.
         self._k_h, self._c_h = mass * (2 * math.pi / 60) ** 2, 2 * mass * (2 * math.pi / 60)
@@ -207,27 +241,37 @@ class WaveShipWorld:
         return eta, rise[:, None] * self._direction
 
     def run(self, duration: float) -> DiscreteRun:
-        """Float for duration (s), recording every physics step; the gimbal turns at its
-        rates (velocity-level kinematic drive: its joints are reset each step). The
-        wrench is computed from the state at the start of each step (between
-        ``mj_step1`` and ``mj_step2``) every force_period steps."""
+        """Float for duration (s), recording every physics step. The gimbal turns at its
+        rates (velocity-level kinematic drive: its joints are reset each step), or the
+        indexer's servo follows its command (the inner axis held at zero), reacting on
+        the hull; its recorded motion is the run's ``gimbal``. The wrench is computed
+        from the state at the start of each step (between ``mj_step1`` and
+        ``mj_step2``) every force_period steps."""
         m, d, motion = self.model, self.data, self.motion
         dt = m.opt.timestep
         n = int(round(duration / dt))
+        t = np.arange(n + 1) * dt
         d.qpos[3:7] = [math.cos(motion.heading / 2), 0.0, 0.0, math.sin(motion.heading / 2)]
+        indexer = motion.indexer
+        if indexer is not None:
+            command = indexer.command(t, t[-1])
+            d.qpos[self._gimbal_qpos[0]] = command[0]
         mujoco.mj_forward(m, d)
         qpos_hist = np.empty((n + 1, m.nq))
         qvel_hist = np.empty((n + 2, m.nv))
         rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
+        kinematic = (0, 1) if indexer is None else (1,)
         qpos, qvel, xfrc = d.qpos, d.qvel, d.xfrc_applied[self._hull]
         # The sea at the mooring point (the plane origin), where the centre of mass stays
         # (no horizontal wave force: it moves by micrometres), for every step at once.
-        eta, slope = self.wave_at(np.arange(n + 1) * dt, np.zeros(2))
+        eta, slope = self.wave_at(t, np.zeros(2))
+        eta, slope = eta.tolist(), slope.tolist()
         for k in range(n + 1):
-            t = k * dt
-            for i in range(2):  # kinematic gimbal: angle = rate t exactly
-                qpos[self._gimbal_qpos[i]] = rates[i] * t
+            for i in kinematic:  # kinematic gimbal: angle = rate t exactly
+                qpos[self._gimbal_qpos[i]] = rates[i] * t[k]
                 qvel[self._gimbal_dof[i]] = rates[i]
+            if indexer is not None:
+                d.ctrl[0] = command[k]
             qpos_hist[k] = qpos
             qvel_hist[k] = qvel
             mujoco.mj_step1(m, d)
@@ -235,35 +279,46 @@ class WaveShipWorld:
                 xfrc[:] = self._hydrodynamic_wrench(eta[k], slope[k])
             mujoco.mj_step2(m, d)
         qvel_hist[n + 1] = qvel
-        return DiscreteRun(dt=dt, t=np.arange(n + 1) * dt, pos=qpos_hist[:, 0:3],
+        if not (np.all(np.isfinite(qpos_hist)) and np.all(np.isfinite(qvel_hist))):
+            raise FloatingPointError("the wave-driven hull's simulation produced non-finite "
+                                     "states")
+        gimbal = None
+        if indexer is not None:
+            angle = qpos_hist[:, self._gimbal_qpos[0]]
+            gimbal = IndexerMotion(t=t, angle=angle, rate=qvel_hist[:-1, self._gimbal_dof[0]],
+                                   command=command,
+                                   spline=make_interp_spline(t, angle, k=5)).gimbal_state
+        return DiscreteRun(dt=dt, t=t, pos=qpos_hist[:, 0:3],
                            quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3],
                            omega=qvel_hist[:, 3:6],
-                           imu_offset_b=np.asarray(motion.lever_arm_b, dtype=float))
+                           imu_offset_b=np.asarray(motion.lever_arm_b, dtype=float),
+                           gimbal=gimbal)
 
-    def _hydrodynamic_wrench(self, eta: float, slope: np.ndarray) -> np.ndarray:
+    def _hydrodynamic_wrench(self, eta: float, slope: tuple[float, float]) -> list[float]:
         """Force and torque (6,) in world axes at the hull's centre of mass, from the
         state whose kinematics MuJoCo has computed (``mj_step1`` or ``mj_forward``) and
-        the sea's elevation eta (m) and slope (2,) at the hull."""
+        the sea's elevation eta (m) and slope (2,) at the hull. Scalar arithmetic: it
+        runs every physics step."""
         d = self.data
-        C = d.xmat[self._hull].reshape(3, 3)       # hull to plane
-        pitch = math.asin(max(-1.0, min(1.0, C[2, 1])))   # PSINS Euler angles
-        roll = math.atan2(-C[2, 0], C[2, 2])
-        yaw = math.atan2(-C[0, 1], C[1, 1])
-        centre = d.xipos[self._hull]
-        v = d.qvel[0:3]
-        w_b = d.qvel[3:6]
+        c00, c01, c02, c10, c11, c12, c20, c21, c22 = d.xmat[self._hull].tolist()  # hull to plane
+        pitch = math.asin(max(-1.0, min(1.0, c21)))   # PSINS Euler angles
+        roll = math.atan2(-c20, c22)
+        yaw = math.atan2(-c01, c11)
+        centre = d.xipos[self._hull].tolist()
+        vx, vy, vz, wx, wy, wz = d.qvel[0:6].tolist()
+        k, c = self._k, self._c
         # Wave slopes seen along the body's right (x) and forward (y) axes.
-        slope_right = slope[0] * C[0, 0] + slope[1] * C[1, 0]
-        slope_fwd = slope[0] * C[0, 1] + slope[1] * C[1, 1]
-        force = (-self._k_h * centre[0] - self._c_h * v[0],
-                 -self._k_h * centre[1] - self._c_h * v[1],
-                 self._mass * self._gravity - self._k[0] * (centre[2] - eta) - self._c[0] * v[2])
+        slope_right = slope[0] * c00 + slope[1] * c10
+        slope_fwd = slope[0] * c01 + slope[1] * c11
         # Roll (about body y) follows the sideways slope, pitch (about x) the lengthwise.
-        torque_b = np.array([-self._k[1] * (pitch - math.atan(slope_fwd)) - self._c[1] * w_b[0],
-                             -self._k[2] * (roll + math.atan(slope_right)) - self._c[2] * w_b[1],
-                             -self._k_yaw * _wrap(yaw - self.motion.heading)
-                             - self._c_yaw * w_b[2]])
-        return np.concatenate([force, C @ torque_b])
+        tx = -k[1] * (pitch - math.atan(slope_fwd)) - c[1] * wx
+        ty = -k[2] * (roll + math.atan(slope_right)) - c[2] * wy
+        tz = -self._k_yaw * _wrap(yaw - self.motion.heading) - self._c_yaw * wz
+        return [-self._k_h * centre[0] - self._c_h * vx,
+                -self._k_h * centre[1] - self._c_h * vy,
+                self._mass * self._gravity - k[0] * (centre[2] - eta) - c[0] * vz,
+                c00 * tx + c01 * ty + c02 * tz, c10 * tx + c11 * ty + c12 * tz,
+                c20 * tx + c21 * ty + c22 * tz]
 
 
 def _wrap(angle: float) -> float:

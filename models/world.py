@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import Callable
 
 import mujoco
 import numpy as np
@@ -49,6 +50,12 @@ class WorldSamples:
     antenna_v_t: np.ndarray | None = None
 
 
+GimbalMotion = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""The double-axis gimbal's motion relative to the carrier: times t (N,) s -> angles
+(rad), angle rates (rad/s) and angle accelerations (rad/s^2), (N, 2) each (outer about
+body z, inner about x; C_s_b = Rz(outer) Rx(inner))."""
+
+
 class GimbalRates:
     """Mixin for motions that carry ``gimbal_outer_rate`` and ``gimbal_inner_rate`` (rad/s):
     the double-axis gimbal under the IMU (outer about body z, inner about x,
@@ -65,6 +72,21 @@ class GimbalRates:
         """Gimbal angles (N, 2) rad (outer, inner) at times t (N,) s."""
         t = np.asarray(t, dtype=float)
         return np.stack([self.gimbal_outer_rate * t, self.gimbal_inner_rate * t], -1)
+
+    def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The gimbal's motion (``GimbalMotion``) at times t (N,) s: the constant rates."""
+        t = np.asarray(t, dtype=float)
+        zeros = np.zeros((t.size, 2))
+        rates = np.array([self.gimbal_outer_rate, self.gimbal_inner_rate])
+        return self.gimbal_angles(t), zeros + rates, zeros
+
+
+def gimbal_rate_in_sensor(angle_rates: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """omega_bs^s (..., 3) rad/s of the double-axis gimbal from its angle rates (..., 2)
+    rad/s (outer, inner) at inner angles (...) rad:
+    omega_bs^s = Rx(inner)^T [0, 0, outer_rate] + [inner_rate, 0, 0]."""
+    outer_rate, inner_rate = angle_rates[..., 0], angle_rates[..., 1]
+    return np.stack([inner_rate, np.sin(inner) * outer_rate, np.cos(inner) * outer_rate], -1)
 
 
 # Sensors every world's MJCF declares, in this order, on site "imu" and body "carrier".
@@ -156,7 +178,8 @@ class DiscreteRun:
     plane; vel (n+2, 3) world velocity of the chassis origin over each step (vel[k] moves
     the car from t_{k-1} to t_k; vel[0] is the initial state); omega (n+2, 3) body rate,
     same indexing; imu_offset_b (3,) m: the IMU's point on the carrier; wheel_angles
-    (n+1, 4) rad (fl, fr, rl, rr, unwrapped) and cross_track (n+1,) m for a car.
+    (n+1, 4) rad (fl, fr, rl, rr, unwrapped) and cross_track (n+1,) m for a car; gimbal:
+    the gimbal's simulated motion where MuJoCo drives it (a servo), else None.
     """
 
     dt: float
@@ -168,6 +191,7 @@ class DiscreteRun:
     imu_offset_b: np.ndarray
     wheel_angles: np.ndarray | None = None
     cross_track: np.ndarray | None = None
+    gimbal: GimbalMotion | None = None
 
     def point_kinematics(self, r_b: np.ndarray, index: np.ndarray | slice = slice(None)
                          ) -> tuple[np.ndarray, np.ndarray]:
@@ -191,11 +215,9 @@ class DiscreteRun:
         return site[0] + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)]), v_site
 
     def imu_increments(self, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
-                       gimbal_rates: tuple[float, float] = (0.0, 0.0)
-                       ) -> tuple[np.ndarray, np.ndarray]:
+                       gimbal: GimbalMotion | None = None) -> tuple[np.ndarray, np.ndarray]:
         """IMU increments per physics step (``discrete_imu``): dtheta, dv (n, 3)."""
-        return discrete_imu(self, self.imu_trajectory()[1], omega_ie_t, gravity_t,
-                            gimbal_rates)
+        return discrete_imu(self, self.imu_trajectory()[1], omega_ie_t, gravity_t, gimbal)
 
 
 def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
@@ -210,35 +232,28 @@ def rotation_integral(omega: np.ndarray, dt: float) -> np.ndarray:
     return dt * np.eye(3) - a * K + b * (K @ K)
 
 
-def gimbal_sensor(t: np.ndarray, rates: tuple[float, float]
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The double-axis gimbal turning at rates (outer about body z, inner about x, rad/s)
-    from zero at t = 0: C_s_b (..., 3, 3) = Rz(outer t) Rx(inner t) and the sensor's rate
-    relative to the body, omega_bs^s (..., 3) rad/s, at times t (...) s."""
-    outer_rate, inner_rate = rates
-    inner = inner_rate * t
-    omega_bs_s = np.stack([np.full_like(inner, inner_rate), np.sin(inner) * outer_rate,
-                           np.cos(inner) * outer_rate], -1)
-    return rot_z(outer_rate * t) @ rot_x(inner), omega_bs_s
-
-
 def to_sensor(t: np.ndarray, omega_ib_b: np.ndarray, f_b: np.ndarray,
-              rates: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Body-axis inertial rate and specific force (..., 3) at times t (...) s to the axes
-    of the IMU on the gimbal (``gimbal_sensor``): omega_is^s and f^s (..., 3)."""
-    C_s_b, omega_bs_s = gimbal_sensor(t, rates)
-    return (np.einsum("...ji,...j->...i", C_s_b, omega_ib_b) + omega_bs_s,
+              gimbal: GimbalMotion | None) -> tuple[np.ndarray, np.ndarray]:
+    """Body-axis inertial rate and specific force (N, 3) at times t (N,) s to the axes of
+    the IMU on the gimbal (C_s_b = Rz(outer) Rx(inner), plus the gimbal's own rate
+    omega_bs^s): omega_is^s and f^s (N, 3). No gimbal (None): unchanged."""
+    if gimbal is None:
+        return omega_ib_b, f_b
+    angles, rates, _ = gimbal(t)
+    C_s_b = rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
+    return (np.einsum("...ji,...j->...i", C_s_b, omega_ib_b)
+            + gimbal_rate_in_sensor(rates, angles[:, 1]),
             np.einsum("...ji,...j->...i", C_s_b, f_b))
 
 
 def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
-                 gravity_t: np.ndarray, gimbal_rates: tuple[float, float] = (0.0, 0.0)
+                 gravity_t: np.ndarray, gimbal: GimbalMotion | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """IMU increments per physics step, consistent with the recorded discrete motion.
 
     The IMU sits at the carrier point r = imu_offset_b, fixed to it (sensor = body axes)
-    or on a double-axis gimbal turning at gimbal_rates (outer about body z, inner about x,
-    rad/s; C_s_b = Rz(outer t) Rx(inner t)). Over step k MuJoCo turns the carrier at the
+    or on the double-axis gimbal moving as ``gimbal`` (``GimbalMotion``; C_s_b =
+    Rz(outer) Rx(inner)). Over step k MuJoCo turns the carrier at the
     constant body rate omega = omega[k+1]: the attitude is exact. MuJoCo changes the
     velocities at once at each step; a strapdown (continuous motion) would integrate such
     jumps in the wrong frame (1/2 omega x dv per step: ~0.1 mm/s per s in a car's turn,
@@ -250,7 +265,7 @@ def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
     C_t_b(tau) = exp(-[omega x] tau) R_k^T, g the true gravity at the step (gravity_t
     (n, 3)). Without a gimbal the integrals are closed-form (the rotation integral E); with
     one, Simpson's rule in sensor axes (the gimbal turns < 1e-3 rad per step, error
-    ~1e-15). Returns dtheta (n, 3) rad and dv (n, 3) m/s in the sensor frame.
+    ~1e-15; a smooth gimbal motion is assumed). Returns dtheta (n, 3) rad and dv (n, 3) m/s in the sensor frame.
     """
     dt = run.dt
     R = quat_to_dcm(run.quat)                  # (n+1, 3, 3) carrier to plane at t_k
@@ -258,7 +273,7 @@ def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
     w = run.omega[1:-1]                        # (n, 3) rate over step k
     force_t = ((v_site[1:] - v_site[:-1]) / dt
                + 2.0 * cross(omega_ie_t, 0.5 * (v_site[1:] + v_site[:-1])) - gravity_t)
-    if gimbal_rates[0] == 0.0 and gimbal_rates[1] == 0.0:
+    if gimbal is None:
         E = rotation_integral(w, dt)           # (n, 3, 3)
         dtheta = w * dt + np.einsum("nij,j->ni", E @ Rt, omega_ie_t)
         return dtheta, np.einsum("nij,nj->ni", E @ Rt, force_t)
@@ -269,7 +284,7 @@ def discrete_imu(run: DiscreteRun, v_site: np.ndarray, omega_ie_t: np.ndarray,
         C_t_b = rotvec_to_dcm(-w * tau) @ Rt
         omega_b = w + np.einsum("nij,j->ni", C_t_b, omega_ie_t)
         f_b = np.einsum("nij,nj->ni", C_t_b, force_t)
-        rate, force = to_sensor(t0 + tau, omega_b, f_b, gimbal_rates)
+        rate, force = to_sensor(t0 + tau, omega_b, f_b, gimbal)
         dtheta += weight * rate
         dv += weight * force
     return dtheta, dv
@@ -315,6 +330,7 @@ class SmoothRun:
         self.quat = quat_cumprod(np.concatenate([run.quat[:1], rotvec_to_quat(step)]))
         self.cross_track = run.cross_track
         self.wheel_angles = run.wheel_angles
+        self.gimbal = run.gimbal
 
     def _coning(self) -> np.ndarray:
         """Rotation vector of each step minus the rate's integral (n, 3) rad: the
@@ -356,7 +372,7 @@ class SmoothRun:
         return self.point_kinematics(self.run.imu_offset_b)
 
     def imu_increments(self, omega_ie_t: np.ndarray, gravity_t: np.ndarray,
-                       gimbal_rates: tuple[float, float] = (0.0, 0.0),
+                       gimbal: GimbalMotion | None = None,
                        chunk: int = 20000) -> tuple[np.ndarray, np.ndarray]:
         """IMU increments per physics step in sensor axes: dtheta (n, 3) rad and dv (n, 3)
         m/s, f = a + 2 omega_ie x v - g with g the true gravity per step (gravity_t
@@ -372,7 +388,7 @@ class SmoothRun:
                 force_t = accel + 2.0 * cross(omega_ie_t, velocity) - gravity_t[k]
                 omega_b = w + np.einsum("nji,j->ni", R, omega_ie_t)
                 f_b = np.einsum("nji,nj->ni", R, force_t)
-                rate, force = to_sensor(t, omega_b, f_b, gimbal_rates)
+                rate, force = to_sensor(t, omega_b, f_b, gimbal)
                 dtheta[k] += weight * self.dt * rate
                 dv[k] += weight * self.dt * force
         return dtheta, dv

@@ -71,7 +71,7 @@ def _bench_epilog() -> str:
             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
             + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
             "car for paper000 and paper001, ship-prescribed or ship-waves for paper003, static-platform "
-            "for paper002, ship-prescribed with an [indexer] and a [gps] table for paper004")
+            "for paper002, ship-prescribed or ship-waves with an [indexer] and a [gps] table for paper004")
 
 
 def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
@@ -145,6 +145,10 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        help="paper004: the boat's swing level (roll/pitch/heading 5/3/2, "
                        "10/5/3, 22.5/10/5 deg, assumed), or all three in turn (default: "
                        "moderate)")
+    bench.add_argument("--motion", choices=["prescribed", "waves"],
+                       help="paper004: the boat's prescribed swing (usv-mems-swing) or the "
+                       "wave-driven boat in a random sea whose state the swing level sets "
+                       "(usv-mems-waves) (default: prescribed, or the --scenario's world)")
     bench.add_argument("--misalignment", choices=["large", "small", "coarse"],
                        help="paper004: the fine stage's start: uniform within level +-10, "
                        "heading +-60 deg (large), +-0.1/+-0.5 deg (small), or the "
@@ -238,7 +242,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         settings["outage"] = args.outage
     for option, paper in (("heading_point", "paper001"), ("coarse", "paper001"),
                           ("disturbance", "paper000"), ("swing", "paper004"),
-                          ("misalignment", "paper004"), ("case", "paper004")):
+                          ("misalignment", "paper004"), ("case", "paper004"),
+                          ("motion", "paper004")):
         value = getattr(args, option)
         if value is not None:
             if args.paper != paper:

@@ -321,6 +321,11 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     if preset not in IMU_PRESETS:
         raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
                           + ", ".join(sorted(IMU_PRESETS)))
+    if world not in ("ship-prescribed", "ship-waves") and "indexer" in raw:
+        raise ConfigError(f"[indexer] exists on the ship worlds only, not {world}")
+    indexer = section("indexer", False)
+    if indexer:
+        motion["indexer"] = _indexer(indexer)
     if world == "car":
         motion_obj, random_phase = _dataclass_from(VehicleMotion, motion, "motion"), False
     elif world == "ship-waves":
@@ -338,12 +343,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         for key in ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b"):
             if key in motion and len(motion[key]) != 3:
                 raise ConfigError(f"motion.{key} must have 3 values (E, N, U or R, F, U)")
-        indexer = section("indexer", False)
-        if indexer:
-            motion["indexer"] = _indexer(indexer)
         motion_obj = _dataclass_from(ShipSwayMotion, motion, "motion")
-    if world != "ship-prescribed" and "indexer" in raw:
-        raise ConfigError(f"[indexer] exists on the ship-prescribed world only, not {world}")
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")

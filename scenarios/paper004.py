@@ -5,6 +5,10 @@ STUKF (transformed model, nonlinear), the STEKF ((6.7) with its feedback), the U
 classic large-angle model and the EKF on it (expected to fail from a large dynamic
 misalignment: flagged in the tables, not hidden).
 
+The boat's motion is the prescribed swing (scenario ``usv-mems-swing``) or the
+wave-driven hull in a random sea (``usv-mems-waves``; ``motion``), the swing level setting
+its amplitudes or its sea state.
+
 Each episode: the GNSS-velocity-aided coarse alignment over the first ``coarse_duration``
 s (ALGORITHMS 1.2, lever arm compensated; its error is reported, and is the start with
 ``misalignment = "coarse"``), then one closed-loop filter epoch per GNSS fix (velocity
@@ -45,6 +49,12 @@ SWING_LEVELS = {"mild": (5.0, 3.0, 2.0), "moderate": (10.0, 5.0, 3.0),
 missing); periods ``SWING_PERIODS``."""
 SWING_PERIODS = (8.0, 6.0, 10.0)
 """Roll, pitch, heading swing periods, s (*assumed*)."""
+MOTION_SCENARIOS = {"prescribed": "usv-mems-swing", "waves": "usv-mems-waves"}
+"""The boat's two motion sources (``--motion``) and their shipped scenarios."""
+SEA_STATES = {"mild": (0.25, 3.5), "moderate": (0.5, 4.0), "severe": (1.0, 5.0)}
+"""The wave-driven boat's sea per swing level: significant wave height m, peak period s
+(*assumed*; roll/pitch/heading std measured on the 6 m boat: 3.6/2.9/1.5, 5.5/5.0/3.6,
+7.2/7.3/6.4 deg)."""
 MISALIGNMENTS = {"large": ((10.0, 10.0, 60.0), (45.0, 45.0, 60.0)),
                  "small": ((0.1, 0.1, 0.5), (0.1, 0.1, 0.5)),
                  "coarse": (None, (45.0, 45.0, 60.0))}
@@ -67,6 +77,9 @@ HEADING_LIMIT = 1.0 * deg
 class Paper004Experiment(Experiment):
     """Settings (SPEC 4.5; *assumed* values marked in the constants above). Times s.
 
+    scenario: a scenario name or .toml (default: the motion's, MOTION_SCENARIOS); motion:
+    "prescribed" (the swing of SWING_LEVELS) or "waves" (the wave-driven boat in the sea of
+    SEA_STATES), or "" (whichever the scenario's world is);
     swing: a key of SWING_LEVELS; misalignment: a key of MISALIGNMENTS; case: one of
     CASES; coarse_duration: the coarse alignment's window from t = 0 (and the fine
     stage's start); fine_duration: the fine run's length (None: to the end of the
@@ -78,7 +91,8 @@ class Paper004Experiment(Experiment):
     P0 of the INS started from a GNSS fix with an attitude off by the misalignment (the
     lever arm's share included)."""
 
-    scenario: str = "usv-mems-swing"
+    scenario: str = ""
+    motion: str = ""
     swing: str = "moderate"
     misalignment: str = "large"
     case: str = "swing"
@@ -95,9 +109,17 @@ class Paper004Experiment(Experiment):
     default_filters: tuple[str, ...] = FILTERS
 
     paper = "004"
-    worlds = ("ship-prescribed",)
+    worlds = ("ship-prescribed", "ship-waves")
     model_variants = ("st", "st-linear")
     state_count = 15
+
+    def __post_init__(self) -> None:
+        if self.motion and self.motion not in MOTION_SCENARIOS:
+            raise ConfigError(f"--motion {self.motion!r} is unknown; valid: "
+                              + ", ".join(MOTION_SCENARIOS))
+        if not self.scenario:
+            object.__setattr__(self, "scenario",
+                               MOTION_SCENARIOS[self.motion or "prescribed"])
 
     @property
     def starts(self) -> tuple[str, ...]:
@@ -125,7 +147,18 @@ class Paper004Experiment(Experiment):
         if m.indexer is None or config.gps is None or m.antenna_b is None:
             raise ConfigError(f"paper004 needs an [indexer], a [gps] table and "
                               f"motion.antenna_b_m; scenario {config.name!r} lacks one")
-        if self.case == "turntable":
+        waves = config.world == "ship-waves"
+        if self.motion and waves != (self.motion == "waves"):
+            raise ConfigError(f"--motion {self.motion} needs a "
+                              f"{'ship-waves' if self.motion == 'waves' else 'ship-prescribed'}"
+                              f" scenario; {config.name!r} has world = {config.world!r}")
+        if waves and self.case == "turntable":
+            raise ConfigError("--case turntable is a still base: run it with --motion "
+                              "prescribed")
+        if waves:
+            height, period = SEA_STATES[self.swing]
+            m = replace(m, significant_wave_height=height, peak_period=period)
+        elif self.case == "turntable":
             m = replace(m, roll_amplitude=0.0, pitch_amplitude=0.0, yaw_amplitude=0.0,
                         linear_amplitude=(0.0, 0.0, 0.0))
         else:
@@ -392,6 +425,8 @@ def paper004_summary(result: CampaignResult) -> dict:
     LEVEL is the swing level (or "turntable")."""
     exp = result.experiment
     level = "turntable" if exp.case == "turntable" else exp.swing
+    from scenarios.config import load_scenario
+    motion = "waves" if load_scenario(exp.scenario).world == "ship-waves" else "prescribed"
     end = (float(result.runs[0].result.t[-1] + result.episodes[0].t[0]) if result.runs
            else exp.duration)
     rms_start = exp.accuracy_start(end)
@@ -403,7 +438,7 @@ def paper004_summary(result: CampaignResult) -> dict:
                                            np.sqrt(np.mean(coarse ** 2, 0)) / deg],
                                "max_abs_deg": [float(v) for v in
                                                np.abs(coarse).max(0) / deg]}},
-            "settings": {"case": exp.case, "swing": exp.swing,
+            "settings": {"case": exp.case, "swing": exp.swing, "motion": motion,
                          "misalignment": exp.misalignment, "episodes": len(result.seeds),
                          "rms_window_s": [rms_start, end]}}
 
@@ -429,7 +464,8 @@ def format_tables(result: CampaignResult) -> str:
     level = next(iter(summary["coarse"]))
     coarse = summary["coarse"][level]
     window = summary["settings"]["rms_window_s"]
-    lines = [f"Paper 004, {exp.case} case, swing {level}, {exp.misalignment} start, "
+    motion = summary["settings"]["motion"]
+    lines = [f"Paper 004, {exp.case} case, swing {level} ({motion}), {exp.misalignment} start, "
              f"{len(result.seeds)} episodes; accuracy over "
              f"[{window[0]:g}, {window[1]:g}] s",
              f"  GNSS-velocity-aided coarse alignment ({exp.coarse_duration:g} s): RMS error "

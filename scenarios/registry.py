@@ -11,7 +11,8 @@ PAPERS = ("paper000", "paper001", "paper002", "paper003", "paper004")
 """Papers with a campaign (``aligngym bench``)."""
 
 SCENARIO_PAPER = {"ring-road-odometer": "paper000", "figure8-gps": "paper001", "ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003",
-                  "static-large-azimuth": "paper002", "usv-mems-swing": "paper004"}
+                  "static-large-azimuth": "paper002", "usv-mems-swing": "paper004",
+                  "usv-mems-waves": "paper004"}
 """Shipped scenarios with an alignment pipeline (the env is registered for these)."""
 
 

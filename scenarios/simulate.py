@@ -213,10 +213,14 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
         run = SmoothRun(run)
     plane = TangentPlane(config.latitude, config.longitude, config.height)
     site, v_site = run.imu_trajectory()
-    rates = (motion.gimbal_outer_rate, motion.gimbal_inner_rate)
+    gimbal_motion = run.gimbal
+    if gimbal_motion is None and motion.has_gimbal:
+        gimbal_motion = motion.gimbal_state
     dtheta, dv = run.imu_increments(plane.omega_ie_t,
-                                    gravity_t(plane, 0.5 * (site[:-1] + site[1:])), rates)
-    gimbal = motion.gimbal_angles(run.t)
+                                    gravity_t(plane, 0.5 * (site[:-1] + site[1:])),
+                                    gimbal_motion)
+    gimbal = (np.zeros((run.t.size, 2)) if gimbal_motion is None
+              else gimbal_motion(run.t)[0])
     # C_s_b = Rz(outer) Rx(inner): the PSINS Euler DCM with pitch = inner, yaw = outer.
     q_s_b = euler_to_quat(np.stack([gimbal[:, 1], np.zeros(run.t.size), gimbal[:, 0]], -1))
     k = int(round(1.0 / (config.imu_rate * run.dt)))

@@ -31,7 +31,8 @@ def test_check_env(env_id):
 
 # An adaptive filter of each env's paper (the fading factors need paper 003's H).
 ADAPTIVE = {"aligngym/Figure8Gps-v0": "swakf", "aligngym/RingRoadOdometer-v0": "sgkf",
-            "aligngym/UsvMemsSwing-v0": "stukf"}  # 004 has no adaptive filter
+            "aligngym/UsvMemsSwing-v0": "stukf",   # 004 has no adaptive filter
+            "aligngym/UsvMemsWaves-v0": "stukf"}
 
 
 def rollout(env_id, seed, steps=12, **kwargs):

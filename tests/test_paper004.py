@@ -108,7 +108,8 @@ def test_convergence_time_is_the_first_time_after_which_heading_stays_within_1_d
 
 @pytest.mark.parametrize("setting, field", [({"swing": "wild"}, "--swing"),
                                             ({"misalignment": "huge"}, "--misalignment"),
-                                            ({"case": "sea"}, "--case")])
+                                            ({"case": "sea"}, "--case"),
+                                            ({"motion": "sea"}, "--motion")])
 def test_unknown_settings_are_one_line_errors(setting, field):
     with pytest.raises(ConfigError) as error:
         Paper004Experiment(**setting).scenario_config()
@@ -143,3 +144,20 @@ def test_swing_levels_merge_into_one_json(campaign):
     assert merged["fine"]["ekf"]["moderate"] == moderate["fine"]["ekf"]["moderate"]
     assert list(merged["coarse"]) == ["moderate", "severe"]
     assert merged["settings"]["swing"] == ["moderate", "severe"]
+
+
+def test_wave_driven_boat_sea_states_reach_the_scenario():
+    """--motion waves: the wave-driven boat, its sea set by the swing level; the still
+    turntable and a scenario of the other world are one-line errors."""
+    from scenarios.paper004 import SEA_STATES
+    severe = Paper004Experiment(motion="waves", swing="severe").scenario_config()
+    assert severe.world == "ship-waves" and severe.name == "usv-mems-waves"
+    assert (severe.motion.significant_wave_height,
+            severe.motion.peak_period) == SEA_STATES["severe"]
+    assert severe.motion.indexer is not None and severe.duration == 2000.0
+    for settings, field in (({"motion": "waves", "case": "turntable"}, "--case turntable"),
+                            ({"motion": "waves", "scenario": "usv-mems-swing"},
+                             "--motion waves")):
+        with pytest.raises(ConfigError) as error:
+            Paper004Experiment(**settings).scenario_config()
+        assert field in str(error.value) and "\n" not in str(error.value)

@@ -42,8 +42,7 @@ def test_smooth_run_recovers_the_analytic_motion_and_its_imu():
     np.testing.assert_allclose(v_site, exact.v_t, atol=1e-9)     # m/s (3e-11)
     # Increments over 10 ms against 5-node Gauss-Legendre integrals of MuJoCo's sensors.
     n = smooth.t.size - 1
-    dtheta, dv = smooth.imu_increments(np.zeros(3), np.zeros((n, 3)),
-                                       (motion.gimbal_outer_rate, motion.gimbal_inner_rate))
+    dtheta, dv = smooth.imu_increments(np.zeros(3), np.zeros((n, 3)), motion.gimbal_state)
     nodes, weights = np.polynomial.legendre.leggauss(5)
     t0 = smooth.t[:-1]
     ref_theta, ref_v = np.zeros((n, 3)), np.zeros((n, 3))
