@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.strapdown import compensate
+from estimators.strapdown import body_rate_at, compensate
 from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
                              rotvec_to_quat)
 from models.earth import OMEGA_IE, normal_gravity
@@ -229,10 +229,7 @@ def velocity_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
     C_b_b0, alpha_all = _body_integrals(dtheta, dv)
     alpha = alpha_all[fix_index]
     if lever_arm_b is not None:
-        rate = dtheta / dt
-        w = rate[np.maximum(fix_index - 1, 0)]                      # interval ending at t_k
-        w[0] = rate[0]
-        lever = np.cross(w, lever_arm_b)
+        lever = np.cross(body_rate_at(dtheta, dt, fix_index), lever_arm_b)
         alpha = alpha + np.einsum("kij,kj->ki", C_b_b0[fix_index], lever) - lever[0]
     # C_n(t)^n0 and the integral, fix to fix.
     t = fix_index * dt

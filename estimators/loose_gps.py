@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
-from estimators.strapdown import AidedInsInputs
+from estimators.strapdown import AidedInsInputs, body_rate_at
 from models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
 from models.earth import (C_n_e, OMEGA_IE, earth_rate_n, ecef_to_geodetic,
                           geodetic_to_ecef, normal_gravity, radii)
@@ -41,7 +41,8 @@ MEASUREMENTS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z", "heading")
 HEADING = 6
 OMEGA_IE_E = np.array([0.0, 0.0, OMEGA_IE])
 RATE_WINDOW = 0.1
-"""The body rate in the lever-arm velocity is the mean over the epoch's last 0.1 s, s."""
+"""Window (s) of the encoder's rate of an IMU turning on its carrier (quantised angles
+need a baseline; an indexer's rate changes only at the ends of its slews)."""
 
 
 def ins_start_at_fix(C_b_n: np.ndarray, lat: float, lon: float, h: float, v_n: np.ndarray,
@@ -50,14 +51,13 @@ def ins_start_at_fix(C_b_n: np.ndarray, lat: float, lon: float, h: float, v_n: n
     """An INS start for one episode at the IMU, from a GNSS fix of the antenna (lat, lon
     rad; h m; v_n (3,) m/s ENU) with the attitude C_b_n (3, 3) and the lever arm
     lever_arm_b (3,) m, IMU to antenna in the IMU frame: position less C l, velocity less
-    C (w_nb x l), w_nb from the first RATE_WINDOW s of gyro increments dtheta (S, 3) rad of
-    interval dt s, less the earth rate and, for an IMU turning on its carrier, its rate
+    C (w_nb x l), w_nb from gyro increments dtheta (S >= 2, 3) rad of interval dt s
+    (at the first boundary, ``strapdown.body_rate_at``), less the earth rate and, for an IMU turning on its carrier, its rate
     omega_bs_b (3,) rad/s relative to the carrier. Returns ``AidedInsInputs``' q_b_n0,
     v_n0, lat0, lon0, h0 as (1, ...) arrays."""
     R_M, R_N = radii(lat)
     l_n = C_b_n @ lever_arm_b
-    samples = max(1, int(round(RATE_WINDOW / dt)))
-    w_b = dtheta[:samples].mean(0) / dt - C_b_n.T @ earth_rate_n(lat)
+    w_b = body_rate_at(dtheta, dt, [0])[0] - C_b_n.T @ earth_rate_n(lat)
     if omega_bs_b is not None:
         w_b = w_b - omega_bs_b
     return {"q_b_n0": dcm_to_quat(C_b_n)[None],
@@ -230,8 +230,7 @@ class LooselyCoupledModel(FilterModel):
         inp, dt = self.inputs, self.inputs.imu_dt
         out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
         S = dtheta.shape[1]
-        last = max(1, int(round(RATE_WINDOW / dt)))
-        self._omega_ib_b = dtheta[:, -last:].mean(1) / dt
+        self._omega_ib_b = body_rate_at(dtheta, dt, [S])[:, 0]
         mid = S // 2
         C_b_n = quat_to_dcm(out["q_b_n"][:, mid])
         C_ne = C_n_e(out["lat"][:, mid], out["lon"][:, mid])

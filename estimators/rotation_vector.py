@@ -21,6 +21,7 @@ import numpy as np
 
 from estimators.model import FilterModel, Observation, StateLayout, Transition
 from estimators.loose_gps import GpsInsInputs
+from estimators.strapdown import body_rate_at
 from models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
 from models.earth import (earth_rate_n, gravity_n, metres_per_geodetic, radii,
                           transport_rate_n)
@@ -213,9 +214,8 @@ def st_velocity_measurement(x: np.ndarray, v_ins: np.ndarray) -> np.ndarray:
 class IndexedGpsInsInputs(GpsInsInputs):
     """``GpsInsInputs`` of an IMU turned on the hull by an indexer or a gimbal (read by its
     encoder): lever_arm_b (B, K+1, 3) m, IMU to antenna in the IMU frame at each epoch
-    boundary; omega_bs_s (B, K+1, 3) rad/s, the IMU's rate relative to the hull over the
-    last ``loose_gps.RATE_WINDOW`` s of each epoch (the window of the INS rate the lever
-    velocity uses)."""
+    boundary; omega_bs_s (B, K+1, 3) rad/s, the IMU's rate relative to the hull at each
+    boundary (from the encoder over ``loose_gps.RATE_WINDOW`` s)."""
 
     omega_bs_s: np.ndarray
 
@@ -310,7 +310,7 @@ class RotationVectorGnssModel(FilterModel):
         out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
         S = dtheta.shape[1]
         mid = S // 2
-        self._rate = dtheta[:, -max(1, int(round(0.1 / dt))):].mean(1) / dt
+        self._rate = body_rate_at(dtheta, dt, [S])[:, 0]
         self._C_b_p[:, k + 1] = quat_to_dcm(out["q_b_n"][:, -1])
         f = dv / dt
         q0 = self._quantities(out, f[:, 0], 0)

@@ -47,6 +47,20 @@ class StrapdownState:
                    np.atleast_1d(np.asarray(h, dtype=float)).copy())
 
 
+def body_rate_at(dtheta: np.ndarray, dt: float, boundary) -> np.ndarray:
+    """The body rate (..., K, 3) rad/s at increment boundaries (K,) (integers in [0, S]) of
+    increments dtheta (..., S >= 2, 3) rad over intervals of dt s: the two intervals' mean
+    rates nearest each boundary, interpolated (inside) or extrapolated linearly (at the
+    ends: 1.5 r_S - 0.5 r_S-1). Second order and without lag: a mean over the last 0.1 s
+    lags by 0.05 s, which through a GNSS antenna's lever-arm velocity biased the heading
+    of a boat rolling at 3 s periods by 2.5 deg (measured on ideal sensors)."""
+    rate = np.asarray(dtheta) / dt
+    k = np.asarray(boundary)
+    low = np.clip(k - 1, 0, rate.shape[-2] - 2)
+    step = (k - (low + 0.5))[:, None]
+    return rate[..., low, :] + step * (rate[..., low + 1, :] - rate[..., low, :])
+
+
 def body_velocity_increment(dtheta: np.ndarray, dv: np.ndarray, dtheta_prev: np.ndarray,
                             dv_prev: np.ndarray) -> np.ndarray:
     """Velocity increment (..., 3) m/s resolved in the start-of-interval body frame.

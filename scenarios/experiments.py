@@ -2,7 +2,6 @@
 gymnasium env and ``scenarios.evaluate`` are built from these."""
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from scenarios.config import ConfigError
@@ -43,7 +42,7 @@ def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
         cls = Paper004Experiment
     else:
         raise ConfigError(f"unknown paper {paper!r}; valid choices: " + ", ".join(PAPERS))
-    return replace(cls(), **settings)
+    return cls(**settings)
 
 
 def experiment_for(scenario: str, **settings) -> "Experiment":

@@ -3,6 +3,7 @@ lever arm turning with the indexer), the filters from a large misalignment again
 own covariance, the summary's shape and bad settings."""
 import json
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -92,7 +93,6 @@ def test_convergence_time_is_the_first_time_after_which_heading_stays_within_1_d
     """run_metrics on a doctored run: heading error 2 deg until 150 s, then 0.5 deg, with
     one excursion to 1.5 deg at 200 s: converged at 201 s (the epoch after it); times in
     scenario time (the fine stage starts after the 60 s coarse alignment)."""
-    from dataclasses import replace
     run = campaign.runs[0]
     t = run.result.t - run.result.t[0] + campaign.episodes[0].t[0]
     assert t[0] == pytest.approx(60.0)
@@ -150,7 +150,8 @@ def test_wave_driven_boat_sea_states_reach_the_scenario():
     """--motion waves: the wave-driven boat, its sea set by the swing level; the still
     turntable and a scenario of the other world are one-line errors."""
     from scenarios.paper004 import SEA_STATES
-    severe = Paper004Experiment(motion="waves", swing="severe").scenario_config()
+    from scenarios.experiments import experiment
+    severe = experiment("paper004", motion="waves", swing="severe").scenario_config()
     assert severe.world == "ship-waves" and severe.name == "usv-mems-waves"
     assert (severe.motion.significant_wave_height,
             severe.motion.peak_period) == SEA_STATES["severe"]
@@ -161,3 +162,29 @@ def test_wave_driven_boat_sea_states_reach_the_scenario():
         with pytest.raises(ConfigError) as error:
             Paper004Experiment(**settings).scenario_config()
         assert field in str(error.value) and "\n" not in str(error.value)
+
+
+@dataclass(frozen=True)
+class IdealSensors(Paper004Experiment):
+    """The experiment on error-free IMU and GNSS data."""
+
+    def scenario_config(self):
+        from sensors.imu import ImuSpec, TriadSpec
+        config = super().scenario_config()
+        still = TriadSpec(bias_fixed=(0.0, 0.0, 0.0))
+        return replace(config, imu=ImuSpec(gyro=still, accel=still),
+                       gps=replace(config.gps, position_sigma_h=0.0, position_sigma_v=0.0,
+                                   velocity_sigma=0.0))
+
+
+@pytest.mark.parametrize("motion", ["prescribed", "waves"])
+def test_error_free_data_align_the_boat_exactly(motion):
+    """On ideal IMU and GNSS the coarse alignment and the filter find the heading to
+    arcseconds-arcminutes, on either motion: a lagging lever-arm rate (the last 0.1 s's
+    mean) left 2.5 deg on the wave-driven boat rolling at 3 s."""
+    exp = IdealSensors(motion=motion, swing="mild", fine_duration=240.0, rms_start=200.0)
+    result = run_campaign(exp, episodes=1, seed=0, filters=["ukf-3n"], workers=1,
+                          progress=False)
+    assert np.abs(result.episodes[0].coarse_error).max() < 0.02 * deg
+    heading = np.abs(result.runs[0].error_n[0, -20:, 2])
+    assert heading.max() < 0.05 * deg

@@ -91,3 +91,18 @@ def test_stationary_navigation_stays_put():
                         dtheta, dv, T)
     assert np.abs(out["v_n"]).max() < 1e-9
     assert np.abs(out["q_b_n"][0, -1] - [1, 0, 0, 0]).max() < 1e-12
+
+
+def test_body_rate_at_boundaries_is_exact_for_a_linear_rate():
+    """Increments of the rate a + b t: the rate at every boundary, the two ends (linear
+    extrapolation) included, without the half-interval lag of an interval's mean."""
+    from estimators.strapdown import body_rate_at
+    dt, S = 0.01, 10
+    a, b = np.array([0.1, -0.2, 0.3]), np.array([2.0, 1.0, -3.0])
+    t = np.arange(S + 1) * dt
+    dtheta = a * dt + 0.5 * b * (t[1:, None] ** 2 - t[:-1, None] ** 2)
+    k = np.arange(S + 1)
+    np.testing.assert_allclose(body_rate_at(dtheta, dt, k), a + b * t[:, None], atol=1e-12)
+    batch = np.stack([dtheta, 2 * dtheta])
+    np.testing.assert_allclose(body_rate_at(batch, dt, [S])[:, 0],
+                               [a + b * t[-1], 2 * (a + b * t[-1])], atol=1e-12)
