@@ -321,9 +321,14 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
     n_coarse = int(round(experiment.coarse_duration / dt))
     fixes = np.flatnonzero((gps["gps_t"] <= experiment.coarse_duration + 1e-9)
                            & gps["gps_valid"])
-    if np.ptp(episode.gimbal_encoder[: n_coarse + 1, 0]) > 1e-3:
-        raise ConfigError("paper004: the indexer must rest during the coarse alignment "
-                          f"(0 to {experiment.coarse_duration:g} s)")
+    # At rest: not slewing. The servo's finite stiffness lets the hull's yaw acceleration
+    # deflect the rotor (a few 1e-4 rad in the severe sea), which the gyros see; the
+    # coarse alignment takes the lever arm at the start (0.01 rad of it: 3 cm on 2.6 m).
+    span = np.ptp(episode.gimbal_encoder[: n_coarse + 1, 0])
+    if span > 0.01:
+        raise ConfigError(f"paper004: the indexer must rest during the coarse alignment "
+                          f"(0 to {experiment.coarse_duration:g} s); it moved "
+                          f"{np.degrees(span):.2f} deg")
     C_coarse, residual = velocity_aided_alignment(
         episode.dtheta[:n_coarse], episode.dv[:n_coarse], dt, gps["gps_t"][fixes] / dt,
         gps["gps_lat"][fixes], gps["gps_h"][fixes], gps["gps_v_n"][fixes], lever_s[0])
