@@ -25,9 +25,13 @@ def test_sigkill_then_resume_equals_an_uninterrupted_run(tmp_path):
     proc = subprocess.Popen(aligngym(*ARGS, "--out", str(out)), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
     episodes = out / "episodes"
-    deadline = time.monotonic() + 60
+
+    def finished_files():
+        return [p for p in episodes.glob("seed_*.npz") if not p.name.endswith(".tmp.npz")]
+
+    deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
-        if len(list(episodes.glob("seed_*.npz"))) >= 2:      # mid-campaign
+        if len(finished_files()) >= 2:                       # mid-campaign
             break
         time.sleep(0.01)
     assert proc.poll() is None, "the campaign ended before it could be killed"
@@ -35,7 +39,7 @@ def test_sigkill_then_resume_equals_an_uninterrupted_run(tmp_path):
     proc.wait()
     # A write cut short leaves a *.tmp.npz (renamed only when complete): every
     # seed_N.npz is a whole episode.
-    finished = [p for p in episodes.glob("seed_*.npz") if not p.name.endswith(".tmp.npz")]
+    finished = finished_files()
     assert 2 <= len(finished) < 8
     for path in finished:
         with np.load(path) as f:
