@@ -195,12 +195,13 @@ def rot_z(angle: np.ndarray) -> np.ndarray:
 def euler_to_quat(euler: np.ndarray) -> np.ndarray:
     """q_b_n (..., 4) from Euler angles [pitch, roll, yaw] (..., 3) rad (PSINS order)."""
     euler = np.asarray(euler, dtype=float)
-    pitch, roll, yaw = euler[..., 0], euler[..., 1], euler[..., 2]
-    zero = np.zeros_like(pitch)
-    qz = rotvec_to_quat(np.stack([zero, zero, yaw], -1))
-    qx = rotvec_to_quat(np.stack([pitch, zero, zero], -1))
-    qy = rotvec_to_quat(np.stack([zero, roll, zero], -1))
-    return quat_normalize(quat_mul(quat_mul(qz, qx), qy))
+    half = 0.5 * euler
+    sx, sy, sz = np.sin(half[..., 0]), np.sin(half[..., 1]), np.sin(half[..., 2])
+    cx, cy, cz = np.cos(half[..., 0]), np.cos(half[..., 1]), np.cos(half[..., 2])
+    # q_z(yaw) * q_x(pitch) * q_y(roll), expanded.
+    return quat_normalize(np.stack([cz * cx * cy - sz * sx * sy, cz * sx * cy - sz * cx * sy,
+                                    cz * cx * sy + sz * sx * cy, sz * cx * cy + cz * sx * sy],
+                                   -1))
 
 
 def euler_to_dcm(euler: np.ndarray) -> np.ndarray:

@@ -106,8 +106,9 @@ def geodetic_to_ecef(lat: np.ndarray, lon: np.ndarray, h: np.ndarray) -> np.ndar
 def ecef_to_geodetic(r_e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Geodetic (lat rad, lon rad, h m) of ECEF position (..., 3) m.
 
-    Bowring's parametric-latitude iteration; converges to below 1e-15 rad
-    (sub-nanometre) for points within 10 km of the ellipsoid after four passes.
+    Bowring's parametric-latitude iteration; two passes reach rounding (3e-16 rad,
+    measured over all latitudes from -500 m to 10 km; one pass leaves 1.4e-13 rad at
+    10 km).
     """
     r_e = np.asarray(r_e, dtype=float)
     x, y, z = r_e[..., 0], r_e[..., 1], r_e[..., 2]
@@ -115,7 +116,7 @@ def ecef_to_geodetic(r_e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     lon = np.arctan2(y, x)
     ep2 = E2 / (1.0 - E2)
     beta = np.arctan2(z, (1.0 - F) * p)
-    for _ in range(4):
+    for _ in range(2):
         lat = np.arctan2(z + ep2 * B * np.sin(beta) ** 3, p - E2 * A * np.cos(beta) ** 3)
         beta = np.arctan2((1.0 - F) * np.sin(lat), np.cos(lat))
     _, R_N = radii(lat)

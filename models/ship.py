@@ -92,14 +92,16 @@ class ShipSwayMotion(GimbalRates):
             accel.append(-amplitude * w * w * c)
         return np.stack(angle, -1), np.stack(rate, -1), np.stack(accel, -1)
 
-    def hull_angular_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """omega_tb^b (N, 3) rad/s and its time derivative (N, 3) rad/s^2.
+    def hull_angular_rate(self, t: np.ndarray, euler: tuple | None = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """omega_tb^b (N, 3) rad/s and its time derivative (N, 3) rad/s^2 (euler: the
+        ``euler(t)`` already computed, or None).
 
         From C_b_t = Rz(psi) Rx(theta) Ry(gamma):
         omega = Ry^T (Rx^T psi_dot e_z + theta_dot e_x) + gamma_dot e_y.
         """
         (th, ga, _), (dth, dga, dps), (ddth, ddga, ddps) = (
-            a.T for a in self.euler(t))
+            a.T for a in (self.euler(t) if euler is None else euler))
         sth, cth, sga, cga = np.sin(th), np.cos(th), np.sin(ga), np.cos(ga)
         omega = np.stack([cga * dth - sga * cth * dps,
                           sth * dps + dga,
@@ -118,7 +120,8 @@ class ShipSwayMotion(GimbalRates):
         A = np.asarray(self.linear_amplitude)
         w = 2 * np.pi / np.asarray(self.linear_period)
         arg = w * t[:, None] + np.asarray(self.linear_phase)
-        return A * np.sin(arg), A * w * np.cos(arg), -A * w * w * np.sin(arg)
+        sine = np.sin(arg)
+        return A * sine, A * w * np.cos(arg), -A * w * w * sine
 
 
 REFERENCE_HULL = ((18.0, 90.0, 8.0), 5.01e6, (3.41e9, 1.62e8, 3.52e9))
@@ -235,13 +238,13 @@ class ShipWorld(PrescribedWorld):
         motion = self.motion
         n = t.size
         pos, vel, acc = motion.sway_centre(t)
-        euler, _, _ = motion.euler(t)
-        omega, omega_dot = motion.hull_angular_rate(t)
+        euler = motion.euler(t)
+        omega, omega_dot = motion.hull_angular_rate(t, euler)
         qpos = np.empty((n, 9))
         qvel = np.empty((n, 8))
         qacc = np.empty((n, 8))
         qpos[:, 0:3] = pos
-        qpos[:, 3:7] = euler_to_quat(euler)
+        qpos[:, 3:7] = euler_to_quat(euler[0])
         gimbal, gimbal_rate, gimbal_accel = motion.gimbal_state(t)
         qpos[:, 7:9] = gimbal
         qvel[:, 0:3] = vel

@@ -48,7 +48,12 @@ def plane_truth(plane: TangentPlane, t: np.ndarray, r_t: np.ndarray, v_t: np.nda
     """Geodetic position, ENU velocity and attitudes (n at the IMU) of plane-frame IMU
     position r_t (N, 3) m, velocity v_t (N, 3) m/s and attitudes q_b_t, q_s_t (N, 4)."""
     lat, lon, h = plane.to_geodetic(r_t)
-    C_t_n = plane.C_t_n(lat, lon)
+    return _truth_at(t, lat, lon, h, plane.C_t_n(lat, lon), v_t, q_b_t, q_s_t,
+                     gimbal_angles)
+
+
+def _truth_at(t, lat, lon, h, C_t_n, v_t, q_b_t, q_s_t, gimbal_angles) -> NavigationTruth:
+    """``plane_truth`` from the geodetic position and C_t_n (N, 3, 3) already known."""
     q_t_n = dcm_to_quat(C_t_n)
     return NavigationTruth(
         t=t, lat=lat, lon=lon, h=h, v_n=np.einsum("...ij,...j->...i", C_t_n, v_t),
@@ -69,11 +74,14 @@ def navigation_truth(samples: WorldSamples, plane: TangentPlane) -> NavigationTr
     f = a_t + 2 omega_ie x v_t - g(position), with g the WGS-84 normal gravity (which
     includes the centrifugal term) along -U at the IMU.
     """
-    truth = plane_truth(plane, samples.t, samples.r_t, samples.v_t, samples.q_b_t,
-                        samples.q_s_t, samples.gimbal_angles)
+    lat, lon, h = plane.to_geodetic(samples.r_t)
+    C_t_n = plane.C_t_n(lat, lon)
+    truth = _truth_at(samples.t, lat, lon, h, C_t_n, samples.v_t, samples.q_b_t,
+                      samples.q_s_t, samples.gimbal_angles)
     q_t_s = quat_conj(samples.q_s_t)
     omega_ie_t = plane.omega_ie_t
     omega_is_s = samples.omega_ts_s + quat_rotate(q_t_s, np.broadcast_to(omega_ie_t,
                                                                          samples.v_t.shape))
-    f_t = samples.a_t + 2.0 * cross(omega_ie_t, samples.v_t) - gravity_t(plane, samples.r_t)
+    g_t = np.einsum("...ji,...j->...i", C_t_n, gravity_n(lat, h))
+    f_t = samples.a_t + 2.0 * cross(omega_ie_t, samples.v_t) - g_t
     return replace(truth, omega_is_s=omega_is_s, f_s=quat_rotate(q_t_s, f_t))

@@ -1,5 +1,6 @@
 """Paper 002's static marble platform (SPEC 4.4): MuJoCo sensors, truth, ideal IMU,
 fidelity, scenario file and command line."""
+import mujoco
 import numpy as np
 import pytest
 
@@ -42,6 +43,9 @@ def test_mujoco_gyro_reads_zero_and_accelerometer_the_model_gravity():
     assert np.all(s.omega_ts_s == 0.0)
     adr, dim = world._adr["imu_accel"]
     C_t_s = euler_to_dcm(motion.euler).T
+    qpos, qvel, qacc = world.joint_state(np.array([5.0]))
+    world.data.qpos[:], world.data.qvel[:], world.data.qacc[:] = qpos[0], qvel[0], qacc[0]
+    mujoco.mj_inverse(world.model, world.data)
     np.testing.assert_allclose(world.data.sensordata[adr:adr + dim],
                                C_t_s @ -world.model.opt.gravity, atol=1e-13)
     np.testing.assert_allclose(s.a_t, 0.0, atol=1e-13)
