@@ -343,6 +343,54 @@ class UnknownFilter(KeyError):
         return str(self.args[0])
 
 
+BUILT_IN = frozenset(FILTERS)
+"""The catalogue's own names (``register_filter`` will not replace them)."""
+
+
+def register_filter(name: str, rule: Callable[[], IntegrationRule],
+                    adaptation: Callable[..., AdaptationPolicy] = NoAdaptation,
+                    description: str = "", model: str = "", fading: bool = False
+                    ) -> FilterEntry:
+    """Add a filter to the catalogue under name, for every campaign, ``evaluate`` and the
+    env of this process: a rule factory (an ``IntegrationRule``: the moments of a map of
+    a Gaussian), an adaptation factory (an ``AdaptationPolicy``; fading: it takes the
+    fading-factor options rho, floor, cap), and the model variant it needs ("" = each
+    experiment's own). A name already registered is replaced, a built-in one is not."""
+    if not (isinstance(name, str) and name and not any(c.isspace() or c in ",:" for c in name)):
+        raise ValueError(f"filter name {name!r}: a non-empty name without spaces, commas "
+                         "or colons")
+    if name in BUILT_IN:
+        raise ValueError(f"filter name {name!r} is a built-in filter; choose another name")
+    if not callable(rule) or not callable(adaptation):
+        raise TypeError(f"filter {name!r}: rule and adaptation must be factories "
+                        "(callables returning an IntegrationRule / AdaptationPolicy)")
+    entry = FilterEntry(rule, adaptation, description or f"user filter {name}", fading, model)
+    FILTERS[name] = entry
+    return entry
+
+
+def _import_entry(spec: str) -> FilterEntry:
+    """The FilterEntry of "module.path:factory" (factory() returns a FilterEntry, an
+    IntegrationRule, or an IntegrationRule class), registered under that name."""
+    import importlib
+    module_name, _, attribute = spec.partition(":")
+    try:
+        factory = getattr(importlib.import_module(module_name), attribute)
+    except (ImportError, AttributeError) as exc:
+        raise UnknownFilter(f"filter {spec!r}: cannot import {attribute!r} from "
+                            f"{module_name!r} ({exc})") from None
+    made = factory()
+    if isinstance(made, FilterEntry):
+        entry = made
+    elif isinstance(made, IntegrationRule):
+        entry = FilterEntry(factory, NoAdaptation, f"user filter {spec}")
+    else:
+        raise UnknownFilter(f"filter {spec!r}: {attribute}() must return a FilterEntry or "
+                            f"an IntegrationRule, not {type(made).__name__}")
+    FILTERS[spec] = entry
+    return entry
+
+
 def filter_names() -> list[str]:
     """The registry's names and name patterns, for messages."""
     return sorted(FILTERS) + [f"{p}-N" for p in _PATTERNS]
@@ -353,6 +401,8 @@ def filter_entry(name: str) -> FilterEntry:
     KeyError for unknown names or an invalid level/order."""
     if name in FILTERS:
         return FILTERS[name]
+    if ":" in name:
+        return _import_entry(name)
     family, _, number = name.rpartition("-")
     if family in _PATTERNS:
         description, valid, what, rule = _PATTERNS[family]
