@@ -150,6 +150,13 @@ class TangentPlane:
         r_e = geodetic_to_ecef(lat, lon, h) - self.r0_e
         return np.einsum("ji,...j->...i", self.C_t_e, r_e)
 
+    def up_t(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+        """The local vertical (U axis of ENU) at (lat, lon) in plane axes, (..., 3): the
+        last row of ``C_t_n``, without the full matrix."""
+        cL = np.cos(lat)
+        up_e = np.stack([cL * np.cos(lon), cL * np.sin(lon), np.sin(lat)], -1)
+        return up_e @ self.C_t_e
+
     def C_t_n(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
         """DCM from plane axes to the local ENU at (lat, lon), (..., 3, 3)."""
         return np.swapaxes(C_n_e(lat, lon), -1, -2) @ self.C_t_e

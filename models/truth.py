@@ -11,7 +11,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from models.attitude import cross, dcm_to_quat, quat_conj, quat_mul, quat_normalize, quat_rotate
-from models.earth import TangentPlane, gravity_n
+from models.earth import TangentPlane, gravity_n, normal_gravity
 from models.world import WorldSamples
 
 
@@ -68,20 +68,30 @@ def gravity_t(plane: TangentPlane, r_t: np.ndarray) -> np.ndarray:
 
 
 def navigation_truth(samples: WorldSamples, plane: TangentPlane) -> NavigationTruth:
-    """Truth from plane-frame kinematics.
+    """Truth from plane-frame kinematics (``imu_truth`` at every sample)."""
+    return imu_truth(samples, plane)[0]
+
+
+def imu_truth(samples: WorldSamples, plane: TangentPlane, every: int = 1
+              ) -> tuple[NavigationTruth, np.ndarray, np.ndarray]:
+    """The navigation truth at samples[::every], and at every sample the IMU's inertial
+    rate omega_is_s (N, 3) rad/s and specific force f_s (N, 3) m/s^2 in its sensor
+    frame (what ideal increments integrate; the truth holds them at its own samples).
 
     The plane is earth-fixed, so omega_is = omega_ts + omega_ie and
     f = a_t + 2 omega_ie x v_t - g(position), with g the WGS-84 normal gravity (which
     includes the centrifugal term) along -U at the IMU.
     """
     lat, lon, h = plane.to_geodetic(samples.r_t)
-    C_t_n = plane.C_t_n(lat, lon)
-    truth = _truth_at(samples.t, lat, lon, h, C_t_n, samples.v_t, samples.q_b_t,
-                      samples.q_s_t, samples.gimbal_angles)
     q_t_s = quat_conj(samples.q_s_t)
     omega_ie_t = plane.omega_ie_t
     omega_is_s = samples.omega_ts_s + quat_rotate(q_t_s, np.broadcast_to(omega_ie_t,
                                                                          samples.v_t.shape))
-    g_t = np.einsum("...ji,...j->...i", C_t_n, gravity_n(lat, h))
+    g_t = -normal_gravity(lat, h)[..., None] * plane.up_t(lat, lon)
     f_t = samples.a_t + 2.0 * cross(omega_ie_t, samples.v_t) - g_t
-    return replace(truth, omega_is_s=omega_is_s, f_s=quat_rotate(q_t_s, f_t))
+    f_s = quat_rotate(q_t_s, f_t)
+    k = slice(None, None, every)
+    truth = _truth_at(samples.t[k], lat[k], lon[k], h[k], plane.C_t_n(lat[k], lon[k]),
+                      samples.v_t[k], samples.q_b_t[k], samples.q_s_t[k],
+                      samples.gimbal_angles[k])
+    return replace(truth, omega_is_s=omega_is_s[k], f_s=f_s[k]), omega_is_s, f_s

@@ -10,7 +10,7 @@ import numpy as np
 from models.earth import TangentPlane
 from models.platform import StaticPlatformWorld
 from models.ship import ShipWorld
-from models.truth import NavigationTruth, navigation_truth
+from models.truth import NavigationTruth, imu_truth
 from models.world import PrescribedWorld
 from scenarios.config import ConfigError, ScenarioConfig
 from sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
@@ -148,12 +148,12 @@ def _prescribed_truth(world: PrescribedWorld, latitude: float, longitude: float,
     n_fine = imu_samples * TRUTH_OVERSAMPLING
     t_fine = np.arange(n_fine + 1) * (duration / n_fine)
     samples = world.sample(t_fine)
-    truth_fine = navigation_truth(samples, plane)
-    imu_t, dtheta, dv = ideal_increments(truth_fine, TRUTH_OVERSAMPLING)
+    truth, omega_is_s, f_s = imu_truth(samples, plane, TRUTH_OVERSAMPLING)
+    imu_t, dtheta, dv = ideal_increments(t_fine, omega_is_s, f_s, TRUTH_OVERSAMPLING)
     every = slice(None, None, TRUTH_OVERSAMPLING)
     antenna = ((samples.antenna_r_t[every], samples.antenna_v_t[every])
                if samples.antenna_r_t is not None else (None, None))
-    return truth_fine.take(every), imu_t, dtheta, dv, antenna
+    return truth, imu_t, dtheta, dv, antenna
 
 
 @lru_cache(maxsize=2)

@@ -19,7 +19,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.signal import lfilter
 
-from models.truth import NavigationTruth
 from models.units import deg_per_h, deg_per_sqrt_h, m_per_s_per_sqrt_h, mg, ug
 
 __all__ = ["TriadSpec", "ImuSpec", "TriadRealization", "ImuRealization", "ImuTuning",
@@ -168,9 +167,11 @@ class ImuTuning:
         return replace(self, **{k: getattr(self, k) * v for k, v in factors.items()})
 
 
-def ideal_increments(truth: NavigationTruth, decimation: int = 2
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ideal IMU increments from truth sampled uniformly at ``decimation`` x the IMU rate.
+def ideal_increments(t: np.ndarray, omega_is_s: np.ndarray, f_s: np.ndarray,
+                     decimation: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ideal IMU increments from the inertial rate omega_is_s (N, 3) rad/s and specific
+    force f_s (N, 3) m/s^2 sampled uniformly at times t (N,) s, ``decimation`` x the
+    IMU rate.
 
     Composite Simpson's rule over each IMU interval (decimation must be even): the error is
     O(h^4) of the rate's fourth derivative, ~1e-13 rad per interval for ship motion.
@@ -178,7 +179,6 @@ def ideal_increments(truth: NavigationTruth, decimation: int = 2
     """
     if decimation < 2 or decimation % 2:
         raise ValueError(f"decimation must be an even integer >= 2, got {decimation}")
-    t = truth.t
     n = t.size - 1
     if n < decimation or n % decimation:
         raise ValueError(f"truth must have k*{decimation}+1 samples, got {t.size}")
@@ -196,7 +196,7 @@ def ideal_increments(truth: NavigationTruth, decimation: int = 2
         idx = np.arange(m)[:, None] * decimation + np.arange(decimation + 1)
         return np.einsum("j,mjk->mk", weights, x[idx])
 
-    return t[decimation::decimation], integrate(truth.omega_is_s), integrate(truth.f_s)
+    return t[decimation::decimation], integrate(omega_is_s), integrate(f_s)
 
 
 def _triad_errors(x: np.ndarray, dt: float, spec: TriadSpec, real: TriadRealization,

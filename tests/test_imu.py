@@ -27,7 +27,8 @@ def polynomial_truth(t):
 
 def test_ideal_increments_integrate_exactly():
     t = np.linspace(0.0, 2.0, 401)  # IMU at 100 Hz, truth at 200 Hz
-    imu_t, dtheta, dv = ideal_increments(polynomial_truth(t))
+    truth = polynomial_truth(t)
+    imu_t, dtheta, dv = ideal_increments(t, truth.omega_is_s, truth.f_s)
     assert imu_t.shape == (200,)
     np.testing.assert_array_equal(imu_t, t[2::2])
     a, b = imu_t - 0.01, imu_t
@@ -39,7 +40,8 @@ def test_ideal_increments_integrate_exactly():
 
 def test_ideal_increments_reject_bad_grid():
     with pytest.raises(ValueError, match="k\\*2\\+1"):
-        ideal_increments(polynomial_truth(np.linspace(0, 1, 10)))
+        truth = polynomial_truth(np.linspace(0, 1, 10))
+        ideal_increments(truth.t, truth.omega_is_s, truth.f_s)
 
 
 def error_rates(spec, dt, n, seed):
