@@ -101,6 +101,37 @@ def test_rgb_array_frames_and_video(env_id, tmp_path):
     assert video.stat().st_size > 1000
 
 
+def test_observation_is_the_filters_own_not_the_truths():
+    """The same sensor data with another truth (the attitude after the start turned by
+    5 deg in heading): the same observations, other truth errors in info."""
+    from dataclasses import replace
+    from models.attitude import rot_z
+
+    def rollout_with(episode=None):
+        env = gym.make(SHIP_ID, estimator="kf", **SHORT)
+        if episode is not None:
+            env.unwrapped._cache[77] = episode
+        obs, _ = env.reset(seed=1, options={"episode_seed": 77})
+        observations, errors = [obs], []
+        for _ in range(10):
+            obs, _, _, _, info = env.step(np.zeros(3, np.float32))
+            observations.append(obs)
+            errors.append(info["error_arcmin"])
+        cached = env.unwrapped._cache[77]
+        env.close()
+        return np.array(observations), np.array(errors), cached
+
+    obs_a, err_a, episode = rollout_with()
+    turn = rot_z(np.deg2rad(5.0))
+    other = replace(episode, C_s_n_true=np.concatenate([episode.C_s_n_true[:1],
+                                                        turn @ episode.C_s_n_true[1:]]),
+                    C_b_n_true=np.concatenate([episode.C_b_n_true[:1],
+                                               turn @ episode.C_b_n_true[1:]]))
+    obs_b, err_b, _ = rollout_with(other)
+    np.testing.assert_array_equal(obs_a, obs_b)
+    assert np.abs(err_a[:, 2] - err_b[:, 2]).min() > 250.0          # arcmin
+
+
 def test_observation_has_no_truth_and_info_has_it():
     env = gym.make(SHIP_ID, **SHORT)
     obs, _ = env.reset(seed=4)
