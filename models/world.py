@@ -188,11 +188,12 @@ class PrescribedWorld(ABC):
         a_t = quat_rotate(q_s_t, read("imu_accel")) + m.opt.gravity
         gimbal = (qpos[:, self._gimbal_qpos] if self._gimbal_qpos is not None
                   else np.zeros((t.size, 2)))
-        antenna = ((read("antenna_pos").copy(), read("antenna_linvel").copy())
+        antenna = ((read("antenna_pos"), read("antenna_linvel"))
                    if "antenna_pos" in self._adr else (None, None))
-        return WorldSamples(t=t, r_t=read("imu_pos").copy(), v_t=read("imu_linvel").copy(),
-                            a_t=a_t, q_s_t=q_s_t.copy(), q_b_t=read("carrier_quat").copy(),
-                            omega_ts_s=read("imu_gyro").copy(), gimbal_angles=gimbal,
+        # Views into the rollout's fresh output (no copies: 6 strided copies cost 18 ms).
+        return WorldSamples(t=t, r_t=read("imu_pos"), v_t=read("imu_linvel"), a_t=a_t,
+                            q_s_t=q_s_t, q_b_t=read("carrier_quat"),
+                            omega_ts_s=read("imu_gyro"), gimbal_angles=gimbal,
                             antenna_r_t=antenna[0], antenna_v_t=antenna[1])
 
 
