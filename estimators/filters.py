@@ -359,8 +359,9 @@ def register_filter(name: str, rule: Callable[[], IntegrationRule],
     if not (isinstance(name, str) and name and not any(c.isspace() or c in ",:" for c in name)):
         raise ValueError(f"filter name {name!r}: a non-empty name without spaces, commas "
                          "or colons")
-    if name in BUILT_IN:
-        raise ValueError(f"filter name {name!r} is a built-in filter; choose another name")
+    if name in BUILT_IN or name.rpartition("-")[0] in _PATTERNS:
+        raise ValueError(f"filter name {name!r} is a built-in filter (or a sghkf-N/ghkf-N "
+                         "name); choose another name")
     if not callable(rule) or not callable(adaptation):
         raise TypeError(f"filter {name!r}: rule and adaptation must be factories "
                         "(callables returning an IntegrationRule / AdaptationPolicy)")
@@ -379,14 +380,20 @@ def _import_entry(spec: str) -> FilterEntry:
     except (ImportError, AttributeError) as exc:
         raise UnknownFilter(f"filter {spec!r}: cannot import {attribute!r} from "
                             f"{module_name!r} ({exc})") from None
-    made = factory()
+    try:
+        made = factory()
+    except Exception as exc:      # the user's code: report it in one line, named
+        raise UnknownFilter(f"filter {spec!r}: {attribute}() raised "
+                            f"{type(exc).__name__}: {exc}") from None
     if isinstance(made, FilterEntry):
         entry = made
     elif isinstance(made, IntegrationRule):
         entry = FilterEntry(factory, NoAdaptation, f"user filter {spec}")
+    elif isinstance(made, type) and issubclass(made, IntegrationRule):
+        entry = FilterEntry(made, NoAdaptation, f"user filter {spec}")
     else:
-        raise UnknownFilter(f"filter {spec!r}: {attribute}() must return a FilterEntry or "
-                            f"an IntegrationRule, not {type(made).__name__}")
+        raise UnknownFilter(f"filter {spec!r}: {attribute}() must return a FilterEntry, "
+                            f"an IntegrationRule or its class, not {type(made).__name__}")
     FILTERS[spec] = entry
     return entry
 

@@ -51,12 +51,17 @@ def body_rate_at(dtheta: np.ndarray, dt: float, boundary) -> np.ndarray:
     """The body rate (..., K, 3) rad/s at increment boundaries (K,) (integers in [0, S]) of
     increments dtheta (..., S >= 2, 3) rad over intervals of dt s: the two intervals' mean
     rates nearest each boundary, interpolated (inside) or extrapolated linearly (at the
-    ends: 1.5 r_S - 0.5 r_S-1). Second order and without lag: a mean over the last 0.1 s
-    lags by 0.05 s, which through a GNSS antenna's lever-arm velocity biased the heading
-    of a boat rolling at 3 s periods by 2.5 deg (measured on ideal sensors)."""
+    ends, e.g. 1.5 r[S-1] - 0.5 r[S-2], r[j] the mean rate of interval j). Second order
+    and without lag: a mean over the last 0.1 s lags by 0.05 s, which through a GNSS
+    antenna's lever-arm velocity biased the heading of a boat rolling at 3 s periods by
+    2.5 deg (measured on ideal sensors). ValueError for boundaries outside [0, S]."""
     rate = np.asarray(dtheta) / dt
-    k = np.asarray(boundary)
-    low = np.clip(k - 1, 0, rate.shape[-2] - 2)
+    k = np.atleast_1d(np.asarray(boundary))
+    S = rate.shape[-2]
+    if S < 2 or k.min() < 0 or k.max() > S:
+        raise ValueError(f"boundaries must lie in [0, {S}] of {S} >= 2 increments, got "
+                         f"{k.min()}..{k.max()}")
+    low = np.clip(k - 1, 0, S - 2)
     step = (k - (low + 0.5))[:, None]
     return rate[..., low, :] + step * (rate[..., low + 1, :] - rate[..., low, :])
 

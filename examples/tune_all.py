@@ -81,7 +81,7 @@ def main() -> None:
         rows = [row for job in jobs for row in job.result()]
     print(f"training seeds {TRAIN_SEEDS}, held-out seeds {TEST_SEEDS}, "
           f"{args.episode_length:g} s episodes, CE {args.iterations} x {args.population}")
-    print(f"| scenario | filter | tuning | reward / epoch | heading RMS, arcmin | action |")
+    print("| scenario | filter | tuning | reward / epoch | heading RMS, arcmin | action |")
     print("| --- | --- | --- | --- | --- | --- |")
     for r in rows:
         print(f"| {r['scenario']} | `{r['filter']}` | {r['tuning']} | {r['reward']:.2f} | "

@@ -133,6 +133,17 @@ class IndexerMotion:
     command: np.ndarray
     spline: object
 
+    @classmethod
+    def from_steps(cls, t: np.ndarray, angle: np.ndarray, rate: np.ndarray,
+                   command: np.ndarray) -> "IndexerMotion":
+        """The motion from MuJoCo's recorded steps (t, angle, rate, command: (n+1,)), its
+        truth the quintic spline through the angles; FloatingPointError if not finite."""
+        if not (np.all(np.isfinite(angle)) and np.all(np.isfinite(rate))):
+            raise FloatingPointError("the indexer servo simulation produced non-finite "
+                                     "angles")
+        return cls(t=t, angle=angle, rate=rate, command=command,
+                   spline=make_interp_spline(t, angle, k=5))
+
     def state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Angle (rad), rate (rad/s), acceleration (rad/s^2) at times t (N,) s."""
         t = np.asarray(t, dtype=float)
@@ -164,13 +175,9 @@ def simulate_indexer(spec: IndexerSpec, duration: float,
     state0 = np.empty(mujoco.mj_stateSize(model, full))
     mujoco.mj_getState(model, data, state0, full)
     states, _ = rollout.rollout(model, data, state0[None], ctrl[None])
-    angle = np.concatenate([[ctrl[0, 0]], states[0, :, 1]])
-    rate = np.concatenate([[0.0], states[0, :, 2]])
-    if not (np.all(np.isfinite(angle)) and np.all(np.isfinite(rate))):
-        raise FloatingPointError("the indexer servo simulation produced non-finite angles")
-    return IndexerMotion(t=t, angle=angle, rate=rate,
-                         command=np.concatenate([ctrl[:, 0], ctrl[-1:, 0]]),
-                         spline=make_interp_spline(t, angle, k=5))
+    return IndexerMotion.from_steps(t, np.concatenate([[ctrl[0, 0]], states[0, :, 1]]),
+                                    np.concatenate([[0.0], states[0, :, 2]]),
+                                    np.concatenate([ctrl[:, 0], ctrl[-1:, 0]]))
 
 
 @lru_cache(maxsize=4)

@@ -19,8 +19,6 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from scipy.interpolate import make_interp_spline
-
 from models.indexer import IndexerMotion, IndexerSpec
 from models.ship import REFERENCE_HULL, ship_mjcf
 from models.units import deg
@@ -67,6 +65,14 @@ class WaveShipMotion(GimbalRates):
     @property
     def has_gimbal(self) -> bool:
         return self.indexer is not None or super().has_gimbal
+
+    def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The constant-rate gimbal's motion (``GimbalRates``). With an indexer the motion
+        is the servo's, simulated with the hull: ``DiscreteRun.gimbal`` of the run."""
+        if self.indexer is not None:
+            raise ValueError("the wave-driven indexer's motion comes from the hull's run "
+                             "(WaveShipWorld.run().gimbal), not from the motion settings")
+        return super().gimbal_state(t)
 
     @property
     def gps_antenna_b(self) -> tuple[float, float, float]:
@@ -188,6 +194,9 @@ class WaveShipWorld:
         the hydrodynamic wrench (held in between). Every step by default: a wrench held
         over 10 ms steps the acceleration at the IMU's own rate, which a strapdown's
         sculling term rectifies (0.63 mm/s over 120 s, against 0.005 mm/s)."""
+        if motion.indexer is not None and abs(motion.indexer.servo_step - timestep) > 1e-12:
+            raise ValueError(f"indexer.servo_step = {motion.indexer.servo_step:g} s: the "
+                             f"wave-driven hull's servo steps with the physics, {timestep:g} s")
         self.motion = motion
         self.force_period = force_period
         xml = ship_mjcf(motion.lever_arm_b, floating=True, antenna_b=motion.antenna_b,
@@ -284,10 +293,9 @@ class WaveShipWorld:
                                      "states")
         gimbal = None
         if indexer is not None:
-            angle = qpos_hist[:, self._gimbal_qpos[0]]
-            gimbal = IndexerMotion(t=t, angle=angle, rate=qvel_hist[:-1, self._gimbal_dof[0]],
-                                   command=command,
-                                   spline=make_interp_spline(t, angle, k=5)).gimbal_state
+            gimbal = IndexerMotion.from_steps(t, qpos_hist[:, self._gimbal_qpos[0]],
+                                              qvel_hist[:-1, self._gimbal_dof[0]],
+                                              command).gimbal_state
         return DiscreteRun(dt=dt, t=t, pos=qpos_hist[:, 0:3],
                            quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3],
                            omega=qvel_hist[:, 3:6],

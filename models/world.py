@@ -138,7 +138,8 @@ def kinematic_twin(model: mujoco.MjModel) -> mujoco.MjModel:
     return twin
 
 
-ROLLOUT_THREADS = max(1, min(4, len(os.sched_getaffinity(0))))
+ROLLOUT_THREADS = max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                               else os.cpu_count() or 1))
 """Threads of the prescribed worlds' sensor rollout."""
 
 

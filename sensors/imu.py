@@ -180,6 +180,9 @@ def ideal_increments(t: np.ndarray, omega_is_s: np.ndarray, f_s: np.ndarray,
     if decimation < 2 or decimation % 2:
         raise ValueError(f"decimation must be an even integer >= 2, got {decimation}")
     n = t.size - 1
+    if np.shape(omega_is_s) != (t.size, 3) or np.shape(f_s) != (t.size, 3):
+        raise ValueError(f"omega_is_s and f_s must be ({t.size}, 3) like t, got "
+                         f"{np.shape(omega_is_s)} and {np.shape(f_s)}")
     if n < decimation or n % decimation:
         raise ValueError(f"truth must have k*{decimation}+1 samples, got {t.size}")
     h = np.diff(t)

@@ -86,6 +86,7 @@ def test_module_factory_on_the_command_line(tmp_path, monkeypatch):
     (lambda: aligngym.register_filter("ukf", UserCubature), "built-in"),
     (lambda: aligngym.register_filter("my filter", UserCubature), "without spaces"),
     (lambda: aligngym.register_filter("x", UserCubature()), "factories"),
+    (lambda: aligngym.register_filter("sghkf-2", UserCubature), "built-in"),
 ])
 def test_bad_registrations_are_one_line_errors(call, message):
     with pytest.raises((ValueError, TypeError)) as error:
@@ -97,3 +98,22 @@ def test_an_unimportable_factory_is_a_one_line_error():
     with pytest.raises(UnknownFilter) as error:
         filter_entry("no_such_module_here:factory")
     assert "cannot import" in str(error.value) and "\n" not in str(error.value)
+
+
+def test_factories_may_return_a_rule_class_and_their_errors_are_one_line(tmp_path,
+                                                                         monkeypatch):
+    (tmp_path / "factories.py").write_text(textwrap.dedent('''
+        from estimators.rules import CubatureRule
+
+        def rule_class():
+            return CubatureRule
+
+        def broken():
+            raise RuntimeError("no licence")
+        '''))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert filter_entry("factories:rule_class").rule().name == "cubature"
+    with pytest.raises(UnknownFilter) as error:
+        filter_entry("factories:broken")
+    assert "RuntimeError: no licence" in str(error.value) and "\n" not in str(error.value)
+    FILTERS.pop("factories:rule_class", None)

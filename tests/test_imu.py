@@ -38,6 +38,12 @@ def test_ideal_increments_integrate_exactly():
     np.testing.assert_allclose(dv[:, 2], 9.8 * 0.01 + 0.5 / 3 * (b ** 3 - a ** 3), rtol=1e-12)
 
 
+def test_ideal_increments_reject_arrays_not_of_the_grid():
+    truth = polynomial_truth(np.linspace(0.0, 2.0, 401))
+    with pytest.raises(ValueError, match="like t"):
+        ideal_increments(truth.t[::2], truth.omega_is_s, truth.f_s)
+
+
 def test_ideal_increments_reject_bad_grid():
     with pytest.raises(ValueError, match="k\\*2\\+1"):
         truth = polynomial_truth(np.linspace(0, 1, 10))

@@ -106,3 +106,6 @@ def test_body_rate_at_boundaries_is_exact_for_a_linear_rate():
     batch = np.stack([dtheta, 2 * dtheta])
     np.testing.assert_allclose(body_rate_at(batch, dt, [S])[:, 0],
                                [a + b * t[-1], 2 * (a + b * t[-1])], atol=1e-12)
+
+    with pytest.raises(ValueError, match="boundaries"):
+        body_rate_at(dtheta, dt, [S + 1])
