@@ -40,7 +40,7 @@ class PreparedEpisode(ABC):
     lat (rad) and h (m), the known position. Experiments add their own fields. It saves
     itself as one .npz, atomically: by default every field as one array (fields annotated
     int or float come back as numbers); episodes holding structures override ``arrays``
-    and ``from_arrays``.
+    and ``from_arrays`` (the fault flags are saved and restored for every episode).
     """
 
     seed: int
@@ -51,6 +51,10 @@ class PreparedEpisode(ABC):
     accel_bias: np.ndarray
     lat: float
     h: float
+    fault_kind: np.ndarray = field(default_factory=lambda: np.array([], str), kw_only=True)
+    fault_time: np.ndarray = field(default_factory=lambda: np.zeros(0), kw_only=True)
+    """The IMU data faults the pipeline's screen flagged (``estimators.screen``): kind
+    (F,) str and the time (F,) s of each one's first sample."""
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything needed to rebuild the episode, as arrays."""
@@ -65,13 +69,33 @@ class PreparedEpisode(ABC):
 
     def save(self, path: Path) -> None:
         tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, **self.arrays())
+        np.savez(tmp, **{**self.arrays(), "fault_kind": np.asarray(self.fault_kind, str),
+                         "fault_time": np.asarray(self.fault_time, float)})
         os.replace(tmp, path)  # atomic: a file on disk is always a complete episode
 
     @classmethod
     def load(cls, path: Path) -> "PreparedEpisode":
         with np.load(path) as f:
-            return cls.from_arrays(f)
+            episode = cls.from_arrays(f)
+            if "fault_kind" in f.files:
+                episode.fault_kind, episode.fault_time = f["fault_kind"], f["fault_time"]
+            return episode
+
+
+def simulate_screened(config: ScenarioConfig, seed: int):
+    """``simulate`` one episode and screen its IMU data as a pipeline must before any
+    filter (``estimators.screen``): the episode with the repaired increments on the run's
+    grid, and the flags {"fault_kind", "fault_time"} for the prepared episode."""
+    from dataclasses import replace as replace_episode
+
+    from estimators.screen import screen_imu
+    from scenarios.simulate import imu_rails, simulate
+    episode = simulate(config, seed=seed)
+    screened = screen_imu(episode.imu_t, episode.dtheta, episode.dv, config.imu_interval,
+                          config.imu_samples, *imu_rails(config))
+    episode = replace_episode(episode, imu_t=screened.imu_t, dtheta=screened.dtheta,
+                              dv=screened.dv)
+    return episode, {"fault_kind": screened.kind, "fault_time": screened.start}
 
 
 class Experiment(ABC):
@@ -218,7 +242,21 @@ class CampaignResult:
     runs: list[FilterRun] = field(default_factory=list)
 
     def summary(self) -> dict:
-        return self.experiment.summary(self)
+        """The experiment's JSON summary, with the IMU screen's flags ("imu_faults")."""
+        return {**self.experiment.summary(self), "imu_faults": self.faults()}
+
+    def faults(self) -> dict:
+        """The IMU data faults the pipeline's screen flagged: episodes flagged (counted
+        apart from the diverged ones, which the filters' tables count), per kind, and
+        per flagged seed the (kind, time s) list."""
+        flagged = {seed: [(str(k), float(t)) for k, t in zip(e.fault_kind, e.fault_time)]
+                   for seed, e in zip(self.seeds, self.episodes) if len(e.fault_kind)}
+        kinds: dict[str, int] = {}
+        for flags in flagged.values():
+            for kind, _ in flags:
+                kinds[kind] = kinds.get(kind, 0) + 1
+        return {"flagged_episodes": len(flagged), "episodes": len(self.seeds),
+                "by_kind": kinds, "flags": {str(s): f for s, f in flagged.items()}}
 
 
 def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],

@@ -15,6 +15,7 @@ from models.waves import WaveShipMotion
 from models.units import arcsec, deg
 from scenarios.registry import DATA_DIR, scenario_names  # noqa: F401  (re-exported)
 from sensors.encoder import GimbalEncoderSpec
+from sensors.faults import ImuFaults
 from sensors.gps import GPS_PRESETS, GpsSpec
 from sensors.imu import IMU_PRESETS, ImuSpec
 from sensors.odometer import ODOMETER_PRESETS, OdometerSpec
@@ -60,6 +61,8 @@ UNITS = {
     "rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
     "velocity_sigma": "", "heading_min_speed": "", "latency": "_s", "outages": "_s",
     "outliers": "", "slips": "",
+    # IMU data faults (rows: see sensors.faults)
+    "spikes": "", "saturation": "", "gaps": "", "nans": "",
     # odometer
     "pulses_per_rev": "", "nominal_radius": "_m", "scale_error": "",
     "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
@@ -74,12 +77,13 @@ VECTORS = ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b",
 """Parameters of 3 values (E, N, U or R, F, U)."""
 STRINGS = ("preset", "bias_frame", "track")
 INTEGERS = ("components", "pulses_per_rev")
-FREE = ("outages", "outliers", "slips", "initial_covariance", "stops", "schedule")
+FREE = ("outages", "outliers", "slips", "initial_covariance", "stops", "schedule",
+        "spikes", "saturation", "gaps", "nans")
 """Checked by their users: (start, end) windows; (time s, east m, north m, up m) and
 (time s, duration s, extra m) rows; a matrix; the indexer's stops and schedule rows."""
 
 SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter",
-            "indexer")
+            "indexer", "faults")
 TOP_KEYS = ("name", "paper", "world")
 
 
@@ -192,6 +196,7 @@ class ScenarioConfig:
     """Frame in which the drawn constant biases are constant: "sensor" (they turn with a
     rotary IMU, which modulates them) or "hull" (no modulation)."""
     filter: tuple[tuple[str, Any], ...] = ()
+    faults: ImuFaults = ImuFaults()
     """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
     scenario's experiment validates (e.g. paper 002's initial_covariance)."""
 
@@ -226,6 +231,10 @@ class ScenarioConfig:
         if abs(self.duration * self.imu_rate - self.imu_samples) > 1e-6 or self.imu_samples < 2:
             raise ConfigError(f"run.duration = {self.duration:g} s must be a whole number (>= 2)"
                               f" of IMU intervals of {self.imu_interval:g} s")
+        try:
+            self.faults.check(self.duration)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
         for when, *_ in (self.gps.outliers if self.gps is not None else ()):
             _check_range("gps.outliers time", when, 0.0, self.duration, "s")
         for when, duration, _ in (self.odometer.slips if self.odometer is not None else ()):
@@ -348,6 +357,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
     filter_table = tuple(sorted(section("filter", False).items()))
+    faults = _dataclass_from(ImuFaults, section("faults", False), "faults")
     try:
         config = ScenarioConfig(
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
@@ -356,7 +366,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
             imu_preset=preset, imu=IMU_PRESETS[preset], imu_bias_frame=bias_frame,
             encoder=encoder, motion=motion_obj,
             random_linear_phase=random_phase, odometer=odometer, gps=gps,
-            filter=filter_table)
+            filter=filter_table, faults=faults)
     except KeyError as exc:
         raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
     config.validate()

@@ -28,9 +28,8 @@ from estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
 from models.attitude import dcm_to_quat, quat_to_dcm
 from models.earth import TangentPlane
 from models.units import arcmin, deg
-from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode
+from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
 from scenarios.config import ConfigError, ScenarioConfig
-from scenarios.simulate import simulate
 from sensors.imu import ImuTuning
 
 STARTS = ("coarse", "large")
@@ -257,7 +256,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
     """Simulate the drive, align coarsely while driving, take the static reference after
     the stop, cut the data into the filter's epochs."""
     config = config or experiment.scenario_config()
-    episode = simulate(config, seed=seed)
+    episode, flags = simulate_screened(config, seed)
     truth, dt = episode.truth, config.imu_interval
     motion, odo = config.motion, config.odometer
     distance = episode.extra["odo_distance"]
@@ -294,6 +293,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
     C_s_n = quat_to_dcm(truth.q_s_n[idx])
     C_b_n = quat_to_dcm(truth.q_b_n[idx])
     return Paper000Episode(
+        **flags,
         seed=seed, t=truth.t[idx], imu_dt=dt,
         dtheta=episode.dtheta[i0: idx[-1]].reshape(epochs, per, 3),
         dv=episode.dv[i0: idx[-1]].reshape(epochs, per, 3),

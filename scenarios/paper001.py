@@ -27,9 +27,8 @@ from estimators.model import stack_episodes, wrap_angle
 from models.attitude import quat_to_dcm, rotvec_to_dcm
 from models.earth import C_n_e, geodetic_to_ecef
 from models.units import arcmin, deg
-from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode)
+from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
 from scenarios.config import ConfigError, ScenarioConfig
-from scenarios.simulate import simulate
 from sensors.imu import ImuTuning
 
 START = "coarse"
@@ -254,7 +253,7 @@ def prepare_episode(experiment: Paper001Experiment, seed: int,
     """Simulate the run, align coarsely (still or moving), cut the data into the filter's
     epochs."""
     config = config or experiment.scenario_config()
-    episode = simulate(config, seed=seed)
+    episode, flags = simulate_screened(config, seed)
     truth, dt = episode.truth, config.imu_interval
     gps = episode.extra
     motion = config.motion
@@ -284,6 +283,7 @@ def prepare_episode(experiment: Paper001Experiment, seed: int,
         raise ConfigError("paper001: the filter epochs must fall on GPS fixes (latency 0)")
     heading_sigma = np.where(gps["gps_heading_valid"][g], gps["gps_heading_sigma"][g], np.nan)
     return Paper001Episode(
+        **flags,
         seed=seed, t=t, imu_dt=dt, dtheta=dtheta, dv=dv, gps_lat=gps["gps_lat"][g],
         gps_lon=gps["gps_lon"][g], gps_h=gps["gps_h"][g], gps_v_n=gps["gps_v_n"][g],
         gps_heading_sigma=heading_sigma, true_lat=truth.lat[idx], true_lon=truth.lon[idx],

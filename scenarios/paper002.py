@@ -26,9 +26,8 @@ from estimators.model import wrap_angle
 from models.attitude import quat_to_dcm
 from models.units import deg, deg_per_h
 from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode,
-                                fine_summary, format_fine_table)
+                                fine_summary, format_fine_table, simulate_screened)
 from scenarios.config import ConfigError, ScenarioConfig
-from scenarios.simulate import simulate
 
 START = "large-azimuth"
 STATE_COUNT = 10
@@ -205,7 +204,7 @@ def prepare_episode(experiment: Paper002Experiment, seed: int,
     """Simulate the static platform, draw the level errors, integrate the IMU for the
     filters' INS."""
     config = config or experiment.scenario_config()
-    episode = simulate(config, seed=seed)
+    episode, flags = simulate_screened(config, seed)
     truth = episode.truth
     lat, h = float(truth.lat[0]), float(truth.h[0])
     rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
@@ -217,6 +216,7 @@ def prepare_episode(experiment: Paper002Experiment, seed: int,
                                       h, step)
     K1 = integrals.t.size
     return Paper002Episode(
+        **flags,
         seed=seed, start_error=start, integrals=integrals,
         C_s_n_true=quat_to_dcm(truth.q_s_n[::per_step])[:K1],
         C_b_n_true=quat_to_dcm(truth.q_b_n[::per_step])[:K1],

@@ -23,9 +23,8 @@ from models.attitude import quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
 from models.units import arcmin, deg
 from scenarios import campaign
 from scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
-                                fine_summary)
+                                fine_summary, simulate_screened)
 from scenarios.config import ConfigError, ScenarioConfig
-from scenarios.simulate import simulate
 from sensors.imu import ImuTuning
 
 STARTS = ("mean", "max")
@@ -267,7 +266,7 @@ def prepare_episode(experiment: Paper003Experiment, seed: int,
                     config: ScenarioConfig | None = None) -> Paper003Episode:
     """Simulate one episode, integrate it and run the coarse alignment."""
     config = config or experiment.scenario_config()
-    episode = simulate(config, seed=seed)
+    episode, flags = simulate_screened(config, seed)
     truth = episode.truth
     lat, h = float(truth.lat[0]), float(truth.h[0])  # known position of the IMU at t0
     integrals = body_frame_integrals(episode.dtheta, episode.dv, episode.gimbal_encoder,
@@ -282,6 +281,7 @@ def prepare_episode(experiment: Paper003Experiment, seed: int,
     idx = np.rint(inputs.t / config.imu_interval).astype(int)
     enc = episode.gimbal_encoder[idx]
     return Paper003Episode(
+        **flags,
         seed=seed, coarse_error=misalignment(C_s_n_all[k2], C_s_n_coarse), inputs=inputs,
         C_s_n_true=C_s_n_all[idx], C_b_n_true=quat_to_dcm(truth.q_b_n[idx]),
         C_s_b=rot_z(enc[:, 0]) @ rot_x(enc[:, 1]),

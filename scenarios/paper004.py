@@ -38,9 +38,8 @@ from estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
                                         RotationVectorGnssModel, RotationVectorTuning)
 from models.attitude import quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
 from models.units import deg, deg_per_h, mg
-from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode
+from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
 from scenarios.config import ConfigError, ScenarioConfig
-from scenarios.simulate import simulate
 from sensors.imu import ImuTuning
 
 SWING_LEVELS = {"mild": (5.0, 3.0, 2.0), "moderate": (10.0, 5.0, 3.0),
@@ -311,7 +310,7 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
     """Simulate the run, align coarsely from the GNSS velocity over the first
     coarse_duration s, cut the data into the filter's epochs."""
     config = config or experiment.scenario_config()
-    episode = simulate(config, seed=seed)
+    episode, flags = simulate_screened(config, seed)
     truth, dt = episode.truth, config.imu_interval
     gps = episode.extra
     m = config.motion
@@ -346,6 +345,7 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
                                        enc[idx, 1])
     draw = np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, 3)
     return Paper004Episode(
+        **flags,
         seed=seed, t=t, imu_dt=dt,
         dtheta=episode.dtheta[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3),
         dv=episode.dv[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3),

@@ -21,8 +21,16 @@ TIDY_COLUMNS = (
 
 
 def format_tables(result: CampaignResult) -> str:
-    """The experiment's paper-shaped tables."""
-    return result.experiment.format_tables(result)
+    """The experiment's paper-shaped tables, and a line on the IMU data faults flagged
+    (when any): flagged episodes are counted apart from diverged ones."""
+    text = result.experiment.format_tables(result)
+    faults = result.faults()
+    if faults["flagged_episodes"]:
+        kinds = ", ".join(f"{k} {n}" for k, n in sorted(faults["by_kind"].items()))
+        text += (f"\nIMU data screen: {faults['flagged_episodes']} of {faults['episodes']} "
+                 f"episodes flagged ({kinds}); repaired before the filters, which the "
+                 "diverged column above judges apart")
+    return text
 
 
 def tidy_rows(result: CampaignResult) -> list[dict]:

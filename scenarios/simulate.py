@@ -112,13 +112,32 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     reading = (truth.gimbal_angles.copy() if ideal or not config.motion.has_gimbal
                else encoder.measure(truth.gimbal_angles, offsets))
     extra = {}
+    imu_t, dtheta, dv = _faults(config, imu_t, dtheta, dv, extra)
     if config.gps is not None:
         every = np.arange(0, truth.t.size, int(round(config.imu_rate / config.gps.rate)))
-        extra = _gps_fixes(config, rngs["gps"], ideal, truth.t[every], antenna[0][every],
-                           antenna[1][every])
+        extra.update(_gps_fixes(config, rngs["gps"], ideal, truth.t[every],
+                                antenna[0][every], antenna[1][every]))
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization,
                    extra=extra)
+
+
+def imu_rails(config: ScenarioConfig) -> tuple[float, float]:
+    """Full scales (gyro rad/s, accelerometer m/s^2) of the scenario's IMU: where a
+    saturated axis sticks (``sensors.faults``)."""
+    from sensors.faults import ACCEL_FULL_SCALE, GYRO_FULL_SCALE, full_scale
+    return (full_scale(config.imu.gyro.measurement_range, GYRO_FULL_SCALE),
+            full_scale(config.imu.accel.measurement_range, ACCEL_FULL_SCALE))
+
+
+def _faults(config: ScenarioConfig, imu_t, dtheta, dv, extra: dict):
+    """The scenario's [faults] injected into the increments; their record added to extra."""
+    if not config.faults.any:
+        return imu_t, dtheta, dv
+    imu_t, dtheta, dv, record = config.faults.apply(imu_t, dtheta, dv, config.imu_interval,
+                                                    *imu_rails(config))
+    extra.update(record)
+    return imu_t, dtheta, dv
 
 
 def _gps_fixes(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
@@ -243,6 +262,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
                                           truth.gimbal_angles)
     extra = {} if run.cross_track is None else {"cross_track": run.cross_track[idx]}
+    imu_t, dtheta, dv = _faults(config, truth.t[1:], dtheta, dv, extra)
     if config.odometer is not None:
         odo = config.odometer
         scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
@@ -256,6 +276,6 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     encoder = config.encoder
     reading = (truth.gimbal_angles.copy() if ideal or not motion.has_gimbal else
                encoder.measure(truth.gimbal_angles, encoder.draw_offsets(rngs["encoder"])))
-    return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=truth.t[1:],
+    return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading,
                    imu_realization=realization, extra=extra)

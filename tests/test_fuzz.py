@@ -111,7 +111,7 @@ def test_the_errors_a_new_user_met():
     assert "expected a number" in rejected(ship(yaw_amplitude_deg=True))
     assert rejected(ship(lever_arm_b_m=[1.0])).startswith("motion.lever_arm_b_m must be 3")
     assert "must be a number" in rejected(ship(yaw_period_s=[7.0]))
-    assert "is neither a key" in rejected({**ship(), "faults": {}})
+    assert "is neither a key" in rejected({**ship(), "fault": {}})
     assert "'wrold' is neither a key" in rejected({**ship(), "wrold": "car"})
     raw = ship()
     del raw["world"]

@@ -1,0 +1,120 @@
+"""The pipelines' check of IMU data before any filter sees it: missing samples (the
+timestamps say so), non-finite samples, samples at a triad's rail (saturation) and
+single-sample spikes are detected, flagged with their time and kind, and repaired by a
+cubic spline through the good samples' rates, onto the run's uniform grid (what a
+missing stretch held cannot be recovered: the spline bounds the loss for smooth motion).
+
+A spike is a sample whose rate departs from its neighbours' mean (the second difference)
+by more than ``SPIKE_MADS`` robust standard deviations of the second differences around
+it (1.4826 x their median over +-``SPIKE_WINDOW`` samples) and at least a floor
+(``SPIKE_FLOOR``), more than its neighbours do (a one-sample spike shows half as large in
+theirs), while the neighbours agree with each other (their difference under half the
+departure): a kink in the motion, such as a servo starting a slew, is not a spike.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SPIKE_MADS = 50.0
+SPIKE_WINDOW = 25
+"""Samples either side of the local median of the second differences."""
+SPIKE_FLOOR = (0.01, 0.5)
+"""Least spike, (gyro rad/s, accelerometer m/s^2) of rate departure."""
+
+
+@dataclass(frozen=True)
+class ScreenedImu:
+    """Increments on the uniform grid: imu_t (M,) s, dtheta (M, 3) rad, dv (M, 3) m/s,
+    repaired; the flags: kind (F,) str ("gap", "nan", "saturation", "spike"), start and
+    end (F,) s (interval end times of the first and last sample flagged)."""
+
+    imu_t: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+    kind: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of each run of True in mask."""
+    idx = np.flatnonzero(mask)
+    if idx.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    return list(zip(idx[np.r_[0, breaks + 1]], idx[np.r_[breaks, idx.size - 1]]))
+
+
+def _spikes(rate: np.ndarray, floor: float) -> np.ndarray:
+    """(M,) True at single-sample spikes of any axis of rate (M, 3)."""
+    from scipy.ndimage import median_filter
+
+    finite = np.isfinite(rate)
+    x = np.where(finite, rate, 0.0)
+    second = np.zeros_like(x)
+    second[1:-1] = x[1:-1] - 0.5 * (x[:-2] + x[2:])
+    size = np.abs(second)
+    across = np.full_like(x, np.inf)            # how far the neighbours are apart
+    across[1:-1] = np.abs(x[2:] - x[:-2])
+    local = median_filter(size, size=(2 * SPIKE_WINDOW + 1, 1), mode="nearest")
+    threshold = np.maximum(SPIKE_MADS * 1.4826 * local, floor)
+    padded = np.pad(size, ((1, 1), (0, 0)))
+    peak = (size >= padded[:-2]) & (size >= padded[2:])
+    spike = (size > threshold) & peak & (across < 0.5 * size) & finite
+    return np.any(spike, axis=1)
+
+
+def screen_imu(imu_t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float,
+               samples: int, gyro_rail: float, accel_rail: float) -> ScreenedImu:
+    """Check and repair increments (M', 3) stamped at interval end times imu_t (M',) s
+    against the run's grid of ``samples`` intervals of dt s, the rails (full scales,
+    rad/s and m/s^2) marking saturation. See the module docstring."""
+    index = np.rint(np.asarray(imu_t) / dt).astype(int) - 1
+    if np.any(np.abs(imu_t - (index + 1) * dt) > 1e-6 * dt) or np.any(np.diff(index) <= 0) \
+            or index.min(initial=0) < 0 or index.max(initial=0) >= samples:
+        raise ValueError("IMU timestamps must lie on the run's grid, increasing")
+    rate = np.full((samples, 2, 3), np.nan)
+    rate[index, 0] = dtheta / dt
+    rate[index, 1] = dv / dt
+    present = np.zeros(samples, bool)
+    present[index] = True
+    bad = {"gap": ~present,
+           "nan": present & ~np.all(np.isfinite(rate.reshape(samples, 6)), axis=1)}
+    with np.errstate(invalid="ignore"):
+        bad["saturation"] = present & (np.any(np.abs(rate[:, 0]) >= 0.999 * gyro_rail, axis=1)
+                                       | np.any(np.abs(rate[:, 1]) >= 0.999 * accel_rail,
+                                                axis=1))
+    clean = rate.copy()
+    clean[bad["nan"] | bad["saturation"]] = np.nan
+    bad["spike"] = (_spikes(clean[:, 0], SPIKE_FLOOR[0]) | _spikes(clean[:, 1], SPIKE_FLOOR[1]))
+    t = (np.arange(samples) + 1) * dt
+    kinds, starts, ends = [], [], []
+    for kind in ("gap", "nan", "saturation", "spike"):
+        for first, last in _runs(bad[kind]):
+            kinds.append(kind)
+            starts.append(t[first])
+            ends.append(t[last])
+    flagged = np.any(np.stack(list(bad.values())), axis=0)
+    good = ~flagged
+    if not good.any():
+        raise ValueError("no good IMU sample in the run")
+    flat = rate.reshape(samples, 6)
+    increments = np.full((samples, 6), np.nan)     # the good samples exactly as given
+    increments[index] = np.concatenate([dtheta, dv], axis=1)
+    if flagged.any():
+        # A cubic spline through the good samples' rates (a swaying hull's rate is far
+        # from linear over half a second: linear interpolation of a 0.5 s rail cost 10'
+        # of attitude on the ship, the spline ...)
+        if good.sum() >= 4:
+            from scipy.interpolate import make_interp_spline
+            flat[flagged] = make_interp_spline(t[good], flat[good], k=3)(t[flagged])
+        else:
+            for c in range(6):
+                flat[flagged, c] = np.interp(t[flagged], t[good], flat[good, c])
+    increments[flagged] = flat[flagged] * dt
+    order = np.argsort(starts, kind="stable")
+    return ScreenedImu(imu_t=t, dtheta=increments[:, :3], dv=increments[:, 3:],
+                       kind=np.array(kinds, dtype=str)[order] if kinds else np.array([], str),
+                       start=np.array(starts)[order], end=np.array(ends)[order])
