@@ -40,6 +40,11 @@ from scenarios.campaign import PreparedEpisode
 from scenarios.experiments import experiment_for
 from scenarios.simulate import episode_rngs, make_world
 
+SHARED_EPISODES = 16
+"""Prepared episodes kept per process across env instances (vectorised envs and repeated
+makes of one scenario simulate each (experiment, seed) once); read-only."""
+_SHARED: OrderedDict = OrderedDict()
+
 OBS_SIZE = 16
 REWARD_SCALE = np.array([1.0, 1.0, 10.0]) * arcmin
 REWARD_CAP = 100.0
@@ -54,7 +59,9 @@ class AlignmentEnv(gym.Env):
     episode's frames to this MP4 file; mistuning: variance multipliers applied to the
     filter's tuning before the agent acts ({"gyro_noise", "accel_noise", "measurement"}),
     to build a deliberately mistuned filter; cache_episodes: number of simulated episodes
-    kept in memory by episode seed (repeated resets with the same seed skip MuJoCo).
+    kept in memory by episode seed (repeated resets with the same seed skip MuJoCo; with
+    more than 0, episodes are also shared with this process's other envs of the same
+    experiment, ``SHARED_EPISODES`` of them; 0: no caching).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -108,7 +115,16 @@ class AlignmentEnv(gym.Env):
         if episode_seed in self._cache:
             self._cache.move_to_end(episode_seed)
             return self._cache[episode_seed]
-        episode = self.experiment.prepare_episode(episode_seed, config=self.config)
+        key = (self.experiment, episode_seed)
+        if self._cache_size > 0 and key in _SHARED:   # another env of this process has it
+            _SHARED.move_to_end(key)
+            episode = _SHARED[key]
+        else:
+            episode = self.experiment.prepare_episode(episode_seed, config=self.config)
+            if self._cache_size > 0:
+                _SHARED[key] = episode
+                while len(_SHARED) > SHARED_EPISODES:
+                    _SHARED.popitem(last=False)
         if self._cache_size > 0:
             self._cache[episode_seed] = episode
             while len(self._cache) > self._cache_size:
