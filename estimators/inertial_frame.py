@@ -15,10 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.strapdown import body_rate_at, compensate
-from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
-                             rotvec_to_quat)
+from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rotvec_to_quat)
 from models.earth import OMEGA_IE, normal_gravity
-from models.world import gimbal_rate_in_sensor  # noqa: F401  (re-exported)
+from models.world import gimbal_C_s_b, gimbal_rate_in_sensor  # noqa: F401  (re-exported)
 
 
 # --- earth rotation in the inertial frame ------------------------------------------------
@@ -122,7 +121,7 @@ def body_frame_integrals(dtheta: np.ndarray, dv: np.ndarray, gimbal_angles: np.n
     else:
         angles = np.asarray(gimbal_angles, dtype=float)
         omega_ib_s = rate - gimbal_rate_s(angles, dt)
-        C_s_b = rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
+        C_s_b = gimbal_C_s_b(angles)
         r_s = np.einsum("nji,j->ni", C_s_b, lever)
     V_la = np.einsum("nij,nj->ni", C, cross(omega_ib_s, r_s))
     return BodyFrameIntegrals(t=np.arange(M + 1) * dt, C_s_s0=C, V_f=V_f, V_la=V_la,

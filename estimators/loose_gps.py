@@ -40,9 +40,6 @@ GYRO, ACCEL = LAYOUT["gyro_bias"], LAYOUT["accel_bias"]
 MEASUREMENTS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z", "heading")
 HEADING = 6
 OMEGA_IE_E = np.array([0.0, 0.0, OMEGA_IE])
-RATE_WINDOW = 0.1
-"""Window (s) of the encoder's rate of an IMU turning on its carrier (quantised angles
-need a baseline; an indexer's rate changes only at the ends of its slews)."""
 
 
 def ins_start_at_fix(C_b_n: np.ndarray, lat: float, lon: float, h: float, v_n: np.ndarray,

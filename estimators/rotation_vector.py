@@ -215,7 +215,7 @@ class IndexedGpsInsInputs(GpsInsInputs):
     """``GpsInsInputs`` of an IMU turned on the hull by an indexer or a gimbal (read by its
     encoder): lever_arm_b (B, K+1, 3) m, IMU to antenna in the IMU frame at each epoch
     boundary; omega_bs_s (B, K+1, 3) rad/s, the IMU's rate relative to the hull at each
-    boundary (from the encoder over ``loose_gps.RATE_WINDOW`` s)."""
+    boundary (paper 004: from the encoder over ``ENCODER_RATE_WINDOW`` s)."""
 
     omega_bs_s: np.ndarray
 

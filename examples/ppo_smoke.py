@@ -22,17 +22,9 @@ TEST_SEEDS = (21, 22, 23)
 
 def mean_reward(env: gym.Env, policy, seeds) -> float:
     """Mean reward per epoch over the seeds' episodes, actions from policy(obs)."""
-    totals = []
-    for seed in seeds:
-        obs, _ = env.reset(seed=seed, options={"episode_seed": seed})
-        total, steps = 0.0, 0
-        while True:
-            obs, reward, terminated, truncated, _ = env.step(policy(obs))
-            total, steps = total + reward, steps + 1
-            if terminated or truncated:
-                break
-        totals.append(total / steps)
-    return float(np.mean(totals))
+    from tune_agent import run_episode
+    return float(np.mean([total / steps for total, steps, _ in
+                          (run_episode(env, policy, seed) for seed in seeds)]))
 
 
 def main() -> None:

@@ -18,14 +18,21 @@ import scenarios  # noqa: F401  (registers the env ids)
 MISTUNED = {"measurement": 0.01}
 
 
-def episode_return(env: gym.Env, action: np.ndarray, seed: int) -> float:
-    env.reset(seed=seed, options={"episode_seed": seed})
-    total = 0.0
+def run_episode(env: gym.Env, policy, seed: int) -> tuple[float, int, dict]:
+    """One episode of the given seed: the summed reward, the steps taken and the last
+    step's info; policy: a constant action, or a function of the observation."""
+    obs, _ = env.reset(seed=seed, options={"episode_seed": seed})
+    total, steps = 0.0, 0
     while True:
-        _, reward, terminated, truncated, _ = env.step(action)
-        total += reward
+        action = policy(obs) if callable(policy) else policy
+        obs, reward, terminated, truncated, info = env.step(action)
+        total, steps = total + reward, steps + 1
         if terminated or truncated:
-            return total / env.unwrapped.episode_steps
+            return total, steps, info
+
+
+def episode_return(env: gym.Env, action: np.ndarray, seed: int) -> float:
+    return run_episode(env, action, seed)[0] / env.unwrapped.episode_steps
 
 
 def mean_return(env: gym.Env, action: np.ndarray, seeds: list[int]) -> float:

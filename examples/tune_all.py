@@ -27,15 +27,10 @@ TEST_SEEDS = (201, 202, 203)
 
 def held_out(env, action: np.ndarray, seeds) -> tuple[float, float]:
     """Mean reward per epoch and RMS final heading error (arcmin) over seeds."""
+    from tune_agent import run_episode
     rewards, heading = [], []
     for seed in seeds:
-        env.reset(seed=seed, options={"episode_seed": seed})
-        total, steps = 0.0, 0
-        while True:
-            _, reward, terminated, truncated, info = env.step(action)
-            total, steps = total + reward, steps + 1
-            if terminated or truncated:
-                break
+        total, steps, info = run_episode(env, action, seed)
         rewards.append(total / steps)
         heading.append(info["metrics"]["final_phi_U_arcmin"])
     return float(np.mean(rewards)), float(np.sqrt(np.mean(np.square(heading))))

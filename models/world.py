@@ -87,6 +87,12 @@ class GimbalRates:
         return self.gimbal_angles(t), zeros + rates, zeros
 
 
+def gimbal_C_s_b(angles: np.ndarray) -> np.ndarray:
+    """C_s^b (..., 3, 3) = Rz(outer) Rx(inner) of the double-axis gimbal at angles (..., 2)
+    rad (outer, inner)."""
+    return rot_z(angles[..., 0]) @ rot_x(angles[..., 1])
+
+
 def gimbal_rate_in_sensor(angle_rates: np.ndarray, inner: np.ndarray) -> np.ndarray:
     """omega_bs^s (..., 3) rad/s of the double-axis gimbal from its angle rates (..., 2)
     rad/s (outer, inner) at inner angles (...) rad:
@@ -270,7 +276,7 @@ def to_sensor(t: np.ndarray, omega_ib_b: np.ndarray, f_b: np.ndarray,
     if gimbal is None:
         return omega_ib_b, f_b
     angles, rates, _ = gimbal(t)
-    C_s_b = rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
+    C_s_b = gimbal_C_s_b(angles)
     return (np.einsum("...ji,...j->...i", C_s_b, omega_ib_b)
             + gimbal_rate_in_sensor(rates, angles[:, 1]),
             np.einsum("...ji,...j->...i", C_s_b, f_b))

@@ -13,7 +13,7 @@ import json
 import os
 from abc import ABC, abstractmethod
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -82,19 +82,41 @@ class PreparedEpisode(ABC):
             return episode
 
 
+@dataclass
+class GnssEpisode(PreparedEpisode):
+    """An episode cut into filter epochs with GNSS fixes at their boundaries: t (K+1,) s
+    epoch boundaries; imu_dt s; dtheta, dv (K, S, 3) raw increments per epoch; gps_lat,
+    gps_lon (rad), gps_h (m), gps_v_n (m/s, ENU) of the antenna at the boundaries (NaN
+    without a fix)."""
+
+    t: np.ndarray
+    imu_dt: float
+    dtheta: np.ndarray
+    dv: np.ndarray
+    gps_lat: np.ndarray
+    gps_lon: np.ndarray
+    gps_h: np.ndarray
+    gps_v_n: np.ndarray
+
+    def gnss_inputs(self) -> dict[str, np.ndarray]:
+        """The fields every GNSS-aided model input takes (``loose_gps.GpsInsInputs``), as
+        a batch of one, the time from the first epoch."""
+        return {"t": self.t - self.t[0], "imu_dt": self.imu_dt, "dtheta": self.dtheta[None],
+                "dv": self.dv[None], "gps_lat": self.gps_lat[None],
+                "gps_lon": self.gps_lon[None], "gps_h": self.gps_h[None],
+                "gps_v_n": self.gps_v_n[None]}
+
+
 def simulate_screened(config: ScenarioConfig, seed: int):
     """``simulate`` one episode and screen its IMU data as a pipeline must before any
     filter (``estimators.screen``): the episode with the repaired increments on the run's
     grid, and the flags {"fault_kind", "fault_time"} for the prepared episode."""
-    from dataclasses import replace as replace_episode
-
     from estimators.screen import screen_imu
     from scenarios.simulate import imu_rails, simulate
     episode = simulate(config, seed=seed)
     screened = screen_imu(episode.imu_t, episode.dtheta, episode.dv, config.imu_interval,
                           config.imu_samples, *imu_rails(config))
-    episode = replace_episode(episode, imu_t=screened.imu_t, dtheta=screened.dtheta,
-                              dv=screened.dv)
+    episode = replace(episode, imu_t=screened.imu_t, dtheta=screened.dtheta, dv=screened.dv)
     return episode, {"fault_kind": screened.kind, "fault_time": screened.start}
 
 

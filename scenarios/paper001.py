@@ -27,7 +27,7 @@ from estimators.model import stack_episodes, wrap_angle
 from models.attitude import quat_to_dcm, rotvec_to_dcm
 from models.earth import C_n_e, geodetic_to_ecef
 from models.units import arcmin, deg
-from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
+from scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
 from scenarios.config import ConfigError, ScenarioConfig
 from sensors.imu import ImuTuning
 
@@ -223,22 +223,13 @@ class Paper001Experiment(Experiment):
 
 
 @dataclass
-class Paper001Episode(PreparedEpisode):
-    """One figure-8 episode from the end of the coarse alignment (``PreparedEpisode``;
-    C_s_b = I). t (K+1,) s epoch boundaries; dtheta, dv (K, S, 3) raw increments per
-    epoch; gps_* at the boundaries (NaN without a fix; gps_heading_sigma NaN where the
-    receiver gives no heading); true_lat, true_lon (rad), true_h (m), true_v_n (m/s) of
-    the IMU at the boundaries; lever_arm_b (3,) m IMU to antenna; coarse_error (3,) rad
-    misalignment E, N, U of the coarse alignment; imu_dt s."""
+class Paper001Episode(GnssEpisode):
+    """One figure-8 episode from the end of the coarse alignment (``GnssEpisode``;
+    C_s_b = I). gps_heading_sigma at the boundaries (NaN where the receiver gives no
+    heading); true_lat, true_lon (rad), true_h (m), true_v_n (m/s) of the IMU at the
+    boundaries; lever_arm_b (3,) m IMU to antenna; coarse_error (3,) rad misalignment E,
+    N, U of the coarse alignment."""
 
-    t: np.ndarray
-    imu_dt: float
-    dtheta: np.ndarray
-    dv: np.ndarray
-    gps_lat: np.ndarray
-    gps_lon: np.ndarray
-    gps_h: np.ndarray
-    gps_v_n: np.ndarray
     gps_heading_sigma: np.ndarray
     true_lat: np.ndarray
     true_lon: np.ndarray
@@ -300,14 +291,12 @@ def model_inputs(episodes: list[Paper001Episode], start_error: np.ndarray) -> Gp
     """The model's inputs for a batch; each INS starts at the first epoch from the true
     attitude turned by its start error (phi E, N, U, rad: C = exp(-[phi x]) C_true),
     from the GPS fix less the lever arm, and at the GPS velocity less the lever arm's
-    (C_b^n (w_nb x l), w_nb from the first 0.1 s of gyro increments)."""
+    (C_b^n (w_nb x l), w_nb the gyros' rate at the first fix, ``ins_start_at_fix``)."""
     inputs = []
     for e, phi in zip(episodes, start_error):
         C_b_n0 = rotvec_to_dcm(-phi) @ e.C_s_n_true[0]
         inputs.append(GpsInsInputs(
-            t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
-            gps_lat=e.gps_lat[None], gps_lon=e.gps_lon[None], gps_h=e.gps_h[None],
-            gps_v_n=e.gps_v_n[None], gps_heading_sigma=e.gps_heading_sigma[None],
+            **e.gnss_inputs(), gps_heading_sigma=e.gps_heading_sigma[None],
             lever_arm_b=e.lever_arm_b[None],
             **ins_start_at_fix(C_b_n0, e.gps_lat[0], e.gps_lon[0], e.gps_h[0], e.gps_v_n[0],
                                e.lever_arm_b, e.dtheta[0], e.imu_dt)))

@@ -19,8 +19,9 @@ from estimators.inertial_fine import (EPS, NABLA, PHI, FineInputs, FineTuning,
 from estimators.inertial_frame import (C_n_i, attitude_from_inertial, body_frame_integrals,
                                        coarse_alignment_ib0)
 from estimators.metrics import misalignment, nees
-from models.attitude import quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
+from models.attitude import quat_to_dcm, rotvec_to_dcm
 from models.units import arcmin, deg
+from models.world import gimbal_C_s_b
 from scenarios import campaign
 from scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
                                 fine_summary, simulate_screened)
@@ -284,7 +285,7 @@ def prepare_episode(experiment: Paper003Experiment, seed: int,
         **flags,
         seed=seed, coarse_error=misalignment(C_s_n_all[k2], C_s_n_coarse), inputs=inputs,
         C_s_n_true=C_s_n_all[idx], C_b_n_true=quat_to_dcm(truth.q_b_n[idx]),
-        C_s_b=rot_z(enc[:, 0]) @ rot_x(enc[:, 1]),
+        C_s_b=gimbal_C_s_b(enc),
         gyro_bias=episode.imu_realization.gyro.bias,
         accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h)
 

@@ -31,14 +31,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from estimators.inertial_frame import gimbal_rate_in_sensor, velocity_aided_alignment
-from estimators.loose_gps import RATE_WINDOW, ins_start_at_fix
+from estimators.loose_gps import ins_start_at_fix
 from estimators.metrics import convergence_time, misalignment, nees
 from estimators.model import stack_episodes
 from estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
                                         RotationVectorGnssModel, RotationVectorTuning)
-from models.attitude import quat_to_dcm, rot_x, rot_z, rotvec_to_dcm
+from models.attitude import quat_to_dcm, rotvec_to_dcm
 from models.units import deg, deg_per_h, mg
-from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
+from models.world import gimbal_C_s_b
+from scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
 from scenarios.config import ConfigError, ScenarioConfig
 from sensors.imu import ImuTuning
 
@@ -70,6 +71,9 @@ FILTERS = ("stukf", "stekf", "ukf-3n", "ekf")
 comparison is of the models. The registry's ``ukf`` (kappa = 0) puts its points at
 sqrt(15) x 60 deg, past pi, from the large start (a campaign can name it)."""
 HEADING_LIMIT = 1.0 * deg
+ENCODER_RATE_WINDOW = 0.1
+"""Window (s) of the indexer's rate from the encoder (quantised angles need a baseline;
+its rate changes only at the ends of a slew)."""
 
 
 @dataclass(frozen=True)
@@ -276,33 +280,19 @@ _KNOWN = np.r_[np.arange(15)[PHI], np.arange(15)[EPS], np.arange(15)[NABLA]]
 
 
 @dataclass
-class Paper004Episode(PreparedEpisode):
-    """One boat episode from the end of the coarse alignment (``PreparedEpisode``; C_s_b
-    from the encoder). t (K+1,) s epoch boundaries (scenario time); dtheta, dv (K, S, 3)
-    raw increments per epoch; gps_* at the boundaries (NaN without a fix); lever_arm_s
-    (K+1, 3) m IMU to antenna in the IMU frame; omega_bs_s (K+1, 3) rad/s the indexer's
-    rate over the last RATE_WINDOW s of each epoch (both from the encoder); coarse_error
-    (3,) rad; coarse_residual m/s (the coarse fit's RMS); start_draw (3,) uniform on
-    [-1, 1], scaled to the start misalignment by the experiment; imu_dt s."""
+class Paper004Episode(GnssEpisode):
+    """One boat episode from the end of the coarse alignment (``GnssEpisode``, t in
+    scenario time; C_s_b from the encoder). lever_arm_s (K+1, 3) m IMU to antenna in the
+    IMU frame; omega_bs_s (K+1, 3) rad/s the indexer's rate over the last
+    ENCODER_RATE_WINDOW s of each epoch (both from the encoder); coarse_error (3,) rad;
+    coarse_residual m/s (the coarse fit's RMS); start_draw (3,) uniform on [-1, 1],
+    scaled to the start misalignment by the experiment."""
 
-    t: np.ndarray
-    imu_dt: float
-    dtheta: np.ndarray
-    dv: np.ndarray
-    gps_lat: np.ndarray
-    gps_lon: np.ndarray
-    gps_h: np.ndarray
-    gps_v_n: np.ndarray
     lever_arm_s: np.ndarray
     omega_bs_s: np.ndarray
     coarse_error: np.ndarray
     coarse_residual: float
     start_draw: np.ndarray
-
-
-def encoder_frames(angles: np.ndarray) -> np.ndarray:
-    """C_s^b (N, 3, 3) = Rz(outer) Rx(inner) from encoder angles (N, 2) rad."""
-    return rot_z(angles[:, 0]) @ rot_x(angles[:, 1])
 
 
 def prepare_episode(experiment: Paper004Experiment, seed: int,
@@ -315,7 +305,7 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
     gps = episode.extra
     m = config.motion
     lever_b = np.subtract(m.antenna_b, m.lever_arm_b)      # IMU on the indexer's axis
-    C_s_b = encoder_frames(episode.gimbal_encoder)
+    C_s_b = gimbal_C_s_b(episode.gimbal_encoder)
     lever_s = np.einsum("nji,j->ni", C_s_b, lever_b)
     n_coarse = int(round(experiment.coarse_duration / dt))
     fixes = np.flatnonzero((gps["gps_t"] <= experiment.coarse_duration + 1e-9)
@@ -339,7 +329,7 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
     g = np.rint(t * config.gps.rate).astype(int)
     if np.any(np.abs(gps["gps_t"][g] - t) > 1e-6):
         raise ConfigError("paper004: the filter epochs must fall on GNSS fixes (latency 0)")
-    window = max(1, int(round(RATE_WINDOW / dt)))
+    window = max(1, int(round(ENCODER_RATE_WINDOW / dt)))
     enc = episode.gimbal_encoder
     omega_bs_s = gimbal_rate_in_sensor((enc[idx] - enc[idx - window]) / (window * dt),
                                        enc[idx, 1])
@@ -369,9 +359,7 @@ def model_inputs(episodes: list[Paper004Episode], start_error: np.ndarray
     for e, phi in zip(episodes, start_error):
         C_s_n0 = rotvec_to_dcm(-phi) @ e.C_s_n_true[0]
         inputs.append(IndexedGpsInsInputs(
-            t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
-            gps_lat=e.gps_lat[None], gps_lon=e.gps_lon[None], gps_h=e.gps_h[None],
-            gps_v_n=e.gps_v_n[None], gps_heading_sigma=np.full((1, e.t.size), np.nan),
+            **e.gnss_inputs(), gps_heading_sigma=np.full((1, e.t.size), np.nan),
             lever_arm_b=e.lever_arm_s[None], omega_bs_s=e.omega_bs_s[None],
             **ins_start_at_fix(C_s_n0, e.gps_lat[0], e.gps_lon[0], e.gps_h[0], e.gps_v_n[0],
                                e.lever_arm_s[0], e.dtheta[0], e.imu_dt, e.omega_bs_s[0])))

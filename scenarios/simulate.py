@@ -203,9 +203,9 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
     realization = config.imu.draw(rngs["imu_realization"])
     rotation = None
     if config.imu_bias_frame == "hull":
-        from models.attitude import rot_x, rot_z
+        from models.world import gimbal_C_s_b
         mid = 0.5 * (gimbal_angles[:-1] + gimbal_angles[1:])
-        rotation = np.swapaxes(rot_z(mid[:, 0]) @ rot_x(mid[:, 1]), -1, -2)
+        rotation = np.swapaxes(gimbal_C_s_b(mid), -1, -2)
     dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu, realization,
                                   rngs["imu_noise"], rotation)
     return dtheta, dv, realization
