@@ -53,13 +53,7 @@ class ShipSwayMotion(GimbalRates):
     hull_size: tuple[float, float, float] = (18.0, 90.0, 8.0)
 
     def __post_init__(self) -> None:
-        if self.indexer is not None and (self.gimbal_outer_rate or self.gimbal_inner_rate):
-            raise ValueError("motion: with an [indexer] the gimbal rates "
-                             "(gimbal_outer_rate_deg_s, gimbal_inner_rate_deg_s) must be 0")
-
-    @property
-    def has_gimbal(self) -> bool:
-        return self.indexer is not None or super().has_gimbal
+        self.check_indexer()
 
     def hull_yaw_accel(self, t: np.ndarray) -> np.ndarray:
         """The hull's angular acceleration about its z axis (N,) rad/s^2 (what a rotor on

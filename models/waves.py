@@ -62,10 +62,6 @@ class WaveShipMotion(GimbalRates):
     antenna_b: tuple[float, float, float] | None = None
     hull_size: tuple[float, float, float] = REFERENCE_HULL[0]
 
-    @property
-    def has_gimbal(self) -> bool:
-        return self.indexer is not None or super().has_gimbal
-
     def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The constant-rate gimbal's motion (``GimbalRates``). With an indexer the motion
         is the servo's, simulated with the hull: ``DiscreteRun.gimbal`` of the run."""
@@ -81,14 +77,11 @@ class WaveShipMotion(GimbalRates):
 
     def check(self) -> None:
         """Raise ValueError naming the field for values outside their range."""
-        if self.indexer is not None:
-            if self.gimbal_outer_rate or self.gimbal_inner_rate:
-                raise ValueError("motion: with an [indexer] the gimbal rates "
-                                 "(gimbal_outer_rate_deg_s, gimbal_inner_rate_deg_s) must be 0")
-            if abs(self.indexer.servo_step - WAVE_TIMESTEP) > 1e-12:
-                raise ValueError(f"indexer.servo_step = {self.indexer.servo_step:g} s: on the "
-                                 f"wave-driven hull the servo steps with the physics, "
-                                 f"{WAVE_TIMESTEP:g} s")
+        self.check_indexer()
+        if self.indexer is not None and abs(self.indexer.servo_step - WAVE_TIMESTEP) > 1e-12:
+            raise ValueError(f"indexer.servo_step = {self.indexer.servo_step:g} s: on the "
+                             f"wave-driven hull the servo steps with the physics, "
+                             f"{WAVE_TIMESTEP:g} s")
         for i, size in enumerate(self.hull_size):
             if not 0.5 <= size <= 500.0:
                 raise ValueError(f"motion.hull_size[{i}] = {size:g} m is out of range "

@@ -69,10 +69,20 @@ class GimbalRates:
 
     gimbal_outer_rate: float
     gimbal_inner_rate: float
+    indexer = None
+    """A single-axis azimuth indexer on the outer axis instead (``models.indexer``), where
+    the motion has one."""
 
     @property
     def has_gimbal(self) -> bool:
-        return self.gimbal_outer_rate != 0.0 or self.gimbal_inner_rate != 0.0
+        return (self.indexer is not None or self.gimbal_outer_rate != 0.0
+                or self.gimbal_inner_rate != 0.0)
+
+    def check_indexer(self) -> None:
+        """ValueError if an indexer and constant gimbal rates are both given."""
+        if self.indexer is not None and (self.gimbal_outer_rate or self.gimbal_inner_rate):
+            raise ValueError("motion: with an [indexer] the gimbal rates "
+                             "(gimbal_outer_rate_deg_s, gimbal_inner_rate_deg_s) must be 0")
 
     def gimbal_angles(self, t: np.ndarray) -> np.ndarray:
         """Gimbal angles (N, 2) rad (outer, inner) at times t (N,) s."""
