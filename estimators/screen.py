@@ -117,3 +117,103 @@ def screen_imu(imu_t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float,
     return ScreenedImu(imu_t=t, dtheta=increments[:, :3], dv=increments[:, 3:],
                        kind=np.array(kinds, dtype=str)[order],
                        start=np.array(starts)[order], end=np.array(ends)[order])
+
+
+STALL_WINDOW = 0.1
+"""s: the encoders' and the commands' angle changes are compared over this window."""
+STALL_TOLERANCE = 2e-3
+"""rad: a gimbal axis whose angle change over STALL_WINDOW falls this far from the
+commanded change is stalled (quantisation and the hull's excitation of the rotor move
+a window's change by < 1e-4 rad; a stall of an axis turning at 6 deg/s shows 0.01)."""
+STALL_MERGE = 10.0
+"""s: stall flags closer than this are one stall (a stalled indexer resumes its slew late,
+which the windows see again at the slew's end)."""
+OUTLIER_MADS = 6.0
+"""A GNSS fix is an outlier when its position is off the velocities' path by more than
+this many robust standard deviations of the scenario's path residuals, both ways."""
+
+
+def screen_gimbal(t: np.ndarray, encoder: np.ndarray, expected: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Stalls of a gimbal: encoder readings and the angles the commands give (both
+    (M+1, 2) rad at times t (M+1,) s; the encoders' constant offsets cancel). Returns the
+    flags' kind (F,) ("gimbal_stall") and time (F,) s: the end of the first window
+    (``STALL_WINDOW``) whose angle change falls ``STALL_TOLERANCE`` off the command's
+    (flags within ``STALL_MERGE`` of the previous one are the same stall)."""
+    n = max(1, int(round(STALL_WINDOW / (t[1] - t[0]))))
+    deficit = (encoder[n:] - encoder[:-n]) - (expected[n:] - expected[:-n])
+    stalled = np.any(np.abs(deficit) > STALL_TOLERANCE, axis=1)
+    times: list[float] = []
+    for first, _ in _runs(stalled):
+        if not times or t[n + first] - times[-1] > STALL_MERGE:
+            times.append(float(t[n + first]))
+    return np.array(["gimbal_stall"] * len(times), dtype=str), np.array(times, dtype=float)
+
+
+def screen_gnss(t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
+                v_n: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Outages and position outliers of GNSS fixes stamped t (N,) s (lat, lon rad, h m,
+    v_n (N, 3) ENU m/s, valid (N,) bool). An outage is a run of invalid fixes (flagged at
+    its first); an outlier is a fix whose position jumps off the path the velocities
+    give (trapezoid) by more than ``OUTLIER_MADS`` robust sigmas, and back at the next
+    fix, on some axis. Flags only: the filters meet the outliers (paper 001 compares how
+    they do). Returns the flags' kind (F,) ("gnss_outage", "gnss_outlier") and time
+    (F,) s, in time order."""
+    from models.earth import radii
+    kinds = ["gnss_outage"] * len(_runs(~valid))
+    times = [t[first] for first, _ in _runs(~valid)]
+    both = valid[1:] & valid[:-1]
+    if both.sum() >= 8:
+        R_M, R_N = radii(lat[:-1])
+        dt = np.diff(t)[:, None]
+        step = np.stack([np.diff(lon) * (R_N + h[:-1]) * np.cos(lat[:-1]),
+                         np.diff(lat) * (R_M + h[:-1]), np.diff(h)], -1)
+        residual = step - 0.5 * (v_n[1:] + v_n[:-1]) * dt        # (N-1, 3), m
+        good = residual[both]
+        sigma = 1.4826 * np.median(np.abs(good - np.median(good, 0)), 0)
+        limit = OUTLIER_MADS * np.maximum(sigma, 1e-3)
+        with np.errstate(invalid="ignore"):
+            off = np.abs(residual) > limit
+            back = np.sign(residual[1:]) == -np.sign(residual[:-1])
+            jump = np.any(off[:-1] & off[1:] & back, axis=1) & both[:-1] & both[1:]
+        for k in np.flatnonzero(jump):
+            kinds.append("gnss_outlier")
+            times.append(t[k + 1])
+    order = np.argsort(times, kind="stable")
+    return np.array(kinds, dtype=str)[order], np.array(times, dtype=float)[order]
+
+
+SLIP_WINDOW = 0.2
+"""s: the odometer's speed is taken over windows this long."""
+SLIP_FLOOR = 0.5
+"""m/s: the least slip flagged. Between two windows, the odometer's speed change less
+the IMU's forward velocity change is a slip above this and 12 robust sigmas of the run's
+(measured on the ring road: sigma 0.01 m/s, largest 0.07 m/s, 0.19 on the rough road;
+a 0.5 m burst over 0.3 s shows 1.7 m/s)."""
+SLIP_MERGE = 1.0
+"""s: odometer flags closer than this are one burst (its start and its end)."""
+
+
+def screen_odometer(dt: float, distance: np.ndarray, dv_forward: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Slip bursts of an odometer: its cumulative distance (M+1,) m at the IMU boundaries
+    (every dt s from 0) against the IMU's velocity increments along the carrier's forward
+    axis (M,) m/s. Two consecutive windows of ``SLIP_WINDOW`` give a speed change; the
+    IMU's increments between the windows' centres give the carrier's. Returns the flags'
+    kind (F,) ("odometer_slip") and time (F,) s: the first window end off by more than
+    ``SLIP_FLOOR`` (flags within ``SLIP_MERGE`` are one burst)."""
+    n = max(2, 2 * int(round(SLIP_WINDOW / dt / 2)))      # even: the centres on boundaries
+    if distance.size < 3 * n:
+        return np.array([], dtype=str), np.array([])
+    speed = (distance[n:] - distance[:-n]) / (n * dt)    # windows ending at n .. M
+    change = speed[n:] - speed[:-n]                       # ends j = 2n .. M
+    cumulative = np.r_[0.0, np.cumsum(dv_forward)]
+    j = np.arange(2 * n, distance.size)
+    residual = change - (cumulative[j - n // 2] - cumulative[j - 3 * n // 2])
+    sigma = 1.4826 * np.median(np.abs(residual - np.median(residual)))
+    slipped = np.abs(residual) > max(SLIP_FLOOR, 12.0 * sigma)
+    times: list[float] = []
+    for first, _ in _runs(slipped):
+        if not times or j[first] * dt - times[-1] > SLIP_MERGE:
+            times.append(float(j[first] * dt))
+    return np.array(["odometer_slip"] * len(times), dtype=str), np.array(times, dtype=float)

@@ -335,6 +335,8 @@ class VehicleMotion(GimbalRates):
     """Optional double-axis gimbal under the IMU (``GimbalRates``), rad/s; both 0 for a
     strapdown IMU."""
     gimbal_inner_rate: float = 0.0
+    gimbal_stalls: tuple[tuple[float, float], ...] = ()
+    """Injected stalls (start s, duration s) of that gimbal (``models.world.stalled``)."""
 
     def make_track(self) -> Track:
         if self.track == "ring":

@@ -17,7 +17,8 @@ import numpy as np
 from models.attitude import euler_to_quat
 from models.indexer import IndexerSpec, cached_indexer
 from models.units import deg
-from models.world import ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld
+from models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
+                          stalled)
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,8 @@ class ShipSwayMotion(GimbalRates):
     indexer: a single-axis azimuth indexer (``models.indexer``) on the outer gimbal axis
     instead of the constant-rate double-axis rotation (both rates 0 then);
     antenna_b: the GNSS antenna from the sway centre (R, F, U), m (None: at the IMU);
-    hull_size: the hull's beam, length and depth, m (visual only).
+    hull_size: the hull's beam, length and depth, m (visual only); gimbal_stalls:
+    injected stalls (start s, duration s) of the gimbal (``models.world.stalled``).
     """
 
     yaw_mean: float = 30 * deg
@@ -51,6 +53,7 @@ class ShipSwayMotion(GimbalRates):
     indexer: IndexerSpec | None = None
     antenna_b: tuple[float, float, float] | None = None
     hull_size: tuple[float, float, float] = (18.0, 90.0, 8.0)
+    gimbal_stalls: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         self.check_indexer()
@@ -70,7 +73,8 @@ class ShipSwayMotion(GimbalRates):
         # The servo is excited by the hull's turning only: one run serves every linear phase.
         hull = replace(self, linear_phase=(0.0, 0.0, 0.0))
         horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
-        return cached_indexer(self.indexer, horizon, hull).gimbal_state(t)
+        return stalled(cached_indexer(self.indexer, horizon, hull).gimbal_state,
+                       self.gimbal_stalls)(t)
 
     def euler(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hull Euler angles [pitch, roll, yaw], their first and second derivatives; (N, 3)."""

@@ -22,7 +22,7 @@ import numpy as np
 from models.indexer import IndexerMotion, IndexerSpec
 from models.ship import REFERENCE_HULL, ship_mjcf
 from models.units import deg
-from models.world import DiscreteRun, GimbalRates
+from models.world import DiscreteRun, GimbalRates, stalled
 
 RHO_G = 1025.0 * 9.81
 WAVE_TIMESTEP = 0.002
@@ -42,7 +42,8 @@ class WaveShipMotion(GimbalRates):
     (``models.indexer``) on the outer gimbal axis, its servo a MuJoCo actuator in the
     floating hull's model (the rates 0 then); antenna_b: the GNSS antenna from the hull
     origin (R, F, U), m (None: at the IMU); hull_size: beam, length, depth, m (the mass
-    properties scale with it, ``models.ship.hull_mass_properties``).
+    properties scale with it, ``models.ship.hull_mass_properties``); gimbal_stalls:
+    injected stalls (start s, duration s) of the gimbal (``models.world.stalled``).
     """
 
     significant_wave_height: float = 1.5
@@ -61,6 +62,7 @@ class WaveShipMotion(GimbalRates):
     indexer: IndexerSpec | None = None
     antenna_b: tuple[float, float, float] | None = None
     hull_size: tuple[float, float, float] = REFERENCE_HULL[0]
+    gimbal_stalls: tuple[tuple[float, float], ...] = ()
 
     def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The constant-rate gimbal's motion (``GimbalRates``). With an indexer the motion
@@ -286,9 +288,12 @@ class WaveShipWorld:
                                      "states")
         gimbal = None
         if indexer is not None:
-            gimbal = IndexerMotion.from_steps(t, qpos_hist[:, self._gimbal_qpos[0]],
-                                              qvel_hist[:-1, self._gimbal_dof[0]],
-                                              command).gimbal_state
+            # A stall is injected into the recorded motion (the rotor's reaction on the
+            # hull during it is not simulated: ~1e-6 of the hull's inertia).
+            gimbal = stalled(IndexerMotion.from_steps(t, qpos_hist[:, self._gimbal_qpos[0]],
+                                                      qvel_hist[:-1, self._gimbal_dof[0]],
+                                                      command).gimbal_state,
+                             motion.gimbal_stalls)
         return DiscreteRun(dt=dt, t=t, pos=qpos_hist[:, 0:3],
                            quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3],
                            omega=qvel_hist[:, 3:6],

@@ -62,6 +62,47 @@ GimbalMotion = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 body z, inner about x; C_s_b = Rz(outer) Rx(inner))."""
 
 
+STALL_RAMP = 0.2
+"""s: a stalled gimbal decelerates to rest, and later re-accelerates, over this time
+(a septic smoothstep, so the angles and their first four derivatives stay continuous)."""
+
+
+def _smoothstep(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The septic smoothstep S(x) = 35x^4 - 84x^5 + 70x^6 - 20x^7 on [0, 1] (0 before, 1
+    after; its first three derivatives vanish at both ends), its derivative S'(x) =
+    140 x^3 (1 - x)^3 and its integral from 0 (1/2 + (x - 1) beyond 1)."""
+    inside = np.clip(x, 0.0, 1.0)
+    value = inside ** 4 * (35.0 + inside * (-84.0 + inside * (70.0 - 20.0 * inside)))
+    slope = 140.0 * inside ** 3 * (1.0 - inside) ** 3
+    integral = (inside ** 5 * (7.0 + inside * (-14.0 + inside * (10.0 - 2.5 * inside)))
+                + np.maximum(x - 1.0, 0.0))
+    return value, slope, integral
+
+
+def stalled(motion: GimbalMotion, stalls: tuple[tuple[float, float], ...]) -> GimbalMotion:
+    """The gimbal ``motion`` with stalls (start s, duration s; durations >= STALL_RAMP,
+    windows apart): in each, every axis stops (after a STALL_RAMP deceleration) and later
+    resumes its motion where it stopped, so everything after runs the stalls' total
+    duration late. A time warp tau(t) with weight w = dtau/dt: angle = base(tau),
+    rate = base_rate(tau) w, acceleration = base_accel(tau) w^2 + base_rate(tau) w'."""
+    if not stalls:
+        return motion
+
+    def state(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t = np.asarray(t, dtype=float)
+        tau, w, dw = t.copy(), np.ones_like(t), np.zeros_like(t)
+        for start, duration in stalls:
+            for sign, edge in ((1.0, start), (-1.0, start + duration)):
+                value, slope, integral = _smoothstep((t - edge) / STALL_RAMP)
+                tau -= sign * STALL_RAMP * integral
+                w -= sign * value
+                dw -= sign * slope / STALL_RAMP
+        angle, rate, accel = motion(tau)
+        return angle, rate * w[:, None], accel * (w ** 2)[:, None] + rate * dw[:, None]
+
+    return state
+
+
 class GimbalRates:
     """Mixin for motions that carry ``gimbal_outer_rate`` and ``gimbal_inner_rate`` (rad/s):
     the double-axis gimbal under the IMU (outer about body z, inner about x,
@@ -72,6 +113,9 @@ class GimbalRates:
     indexer = None
     """A single-axis azimuth indexer on the outer axis instead (``models.indexer``), where
     the motion has one."""
+    gimbal_stalls: tuple[tuple[float, float], ...] = ()
+    """Injected stalls (start s, duration s) of the gimbal, where the motion has the field
+    (the scenario's [faults] gimbal_stalls; ``stalled``)."""
 
     @property
     def has_gimbal(self) -> bool:
@@ -90,11 +134,25 @@ class GimbalRates:
         return np.stack([self.gimbal_outer_rate * t, self.gimbal_inner_rate * t], -1)
 
     def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The gimbal's motion (``GimbalMotion``) at times t (N,) s: the constant rates."""
+        """The gimbal's motion (``GimbalMotion``) at times t (N,) s: the constant rates,
+        with the motion's gimbal stalls (fault injection, ``stalled``)."""
+        return stalled(self._constant_rates, self.gimbal_stalls)(t)
+
+    def _constant_rates(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = np.asarray(t, dtype=float)
         zeros = np.zeros((t.size, 2))
         rates = np.array([self.gimbal_outer_rate, self.gimbal_inner_rate])
         return self.gimbal_angles(t), zeros + rates, zeros
+
+    def expected_gimbal_angles(self, t: np.ndarray) -> np.ndarray:
+        """The angles (N, 2) rad a pipeline expects the encoders to read (less their
+        offsets) at times t (N,) s, from the commands alone: the constant rates, or the
+        indexer servo's linear closed-loop response to its command (the inner axis at
+        rest). A stalled gimbal falls behind them (``estimators.screen.screen_gimbal``)."""
+        t = np.asarray(t, dtype=float)
+        if self.indexer is None:
+            return self.gimbal_angles(t)
+        return np.stack([self.indexer.linear_response(t), np.zeros(t.size)], -1)
 
 
 def gimbal_C_s_b(angles: np.ndarray) -> np.ndarray:

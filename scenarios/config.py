@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -62,7 +62,7 @@ UNITS = {
     "velocity_sigma": "", "heading_min_speed": "", "latency": "_s", "outages": "_s",
     "outliers": "", "slips": "",
     # IMU data faults (rows: see sensors.faults)
-    "spikes": "", "saturation": "", "gaps": "", "nans": "",
+    "spikes": "", "saturation": "", "gaps": "", "nans": "", "gimbal_stalls": "",
     # odometer
     "pulses_per_rev": "", "nominal_radius": "_m", "scale_error": "",
     "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
@@ -78,7 +78,7 @@ VECTORS = ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b",
 STRINGS = ("preset", "bias_frame", "track")
 INTEGERS = ("components", "pulses_per_rev")
 FREE = ("outages", "outliers", "slips", "initial_covariance", "stops", "schedule",
-        "spikes", "saturation", "gaps", "nans")
+        "spikes", "saturation", "gaps", "nans", "gimbal_stalls")
 """Checked by their users: (start, end) windows; (time s, east m, north m, up m) and
 (time s, duration s, extra m) rows; a matrix; the indexer's stops and schedule rows."""
 
@@ -358,6 +358,11 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
     filter_table = tuple(sorted(section("filter", False).items()))
     faults = _dataclass_from(ImuFaults, section("faults", False), "faults")
+    if faults.gimbal_stalls:
+        if not getattr(motion_obj, "has_gimbal", False):
+            raise ConfigError(f"faults.gimbal_stalls: the {world} scenario {source} has no "
+                              "gimbal (gimbal rates or an [indexer]) to stall")
+        motion_obj = replace(motion_obj, gimbal_stalls=faults.gimbal_stalls)
     try:
         config = ScenarioConfig(
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),

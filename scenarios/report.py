@@ -21,15 +21,15 @@ TIDY_COLUMNS = (
 
 
 def format_tables(result: CampaignResult) -> str:
-    """The experiment's paper-shaped tables, and a line on the IMU data faults flagged
-    (when any): flagged episodes are counted apart from diverged ones."""
+    """The experiment's paper-shaped tables, and a line on the data faults flagged (when
+    any): flagged episodes are counted apart from diverged ones."""
     text = result.experiment.format_tables(result)
     faults = result.faults()
     if faults["flagged_episodes"]:
         kinds = ", ".join(f"{k} {n}" for k, n in sorted(faults["by_kind"].items()))
-        text += (f"\nIMU data screen: {faults['flagged_episodes']} of {faults['episodes']} "
-                 f"episodes flagged ({kinds}); repaired before the filters, which the "
-                 "diverged column above judges apart")
+        text += (f"\nData faults flagged: {faults['flagged_episodes']} of {faults['episodes']} "
+                 f"episodes ({kinds}); IMU data are repaired before the filters, the other "
+                 "faults are left to them; the diverged column above judges them apart")
     return text
 
 

@@ -131,12 +131,33 @@ def imu_rails(config: ScenarioConfig) -> tuple[float, float]:
 
 
 def _faults(config: ScenarioConfig, imu_t, dtheta, dv, extra: dict):
-    """The scenario's [faults] injected into the increments; their record added to extra."""
-    if not config.faults.any:
-        return imu_t, dtheta, dv
-    imu_t, dtheta, dv, record = config.faults.apply(imu_t, dtheta, dv, config.imu_interval,
-                                                    *imu_rails(config))
-    extra.update(record)
+    """The scenario's [faults] injected into the increments. Their record, with the
+    gimbal stalls' (which the motion carries) and the GNSS outages and outliers and the
+    odometer slips of the sensors' tables, added to extra (when there is any)."""
+    faults = config.faults
+    record = {"fault_kind": [], "fault_start": [], "fault_end": []}
+    if faults.any:
+        imu_t, dtheta, dv, imu_record = faults.apply(imu_t, dtheta, dv, config.imu_interval,
+                                                     *imu_rails(config))
+        for key in record:
+            record[key] += list(imu_record[key])
+    rows = [("gimbal_stall", start, start + duration)
+            for start, duration in faults.gimbal_stalls]
+    if config.gps is not None:
+        rows += [("gnss_outage", start, min(end, config.duration))
+                 for start, end in config.gps.outages if start < config.duration]
+        rows += [("gnss_outlier", when, when) for when, *_ in config.gps.outliers]
+    if config.odometer is not None:
+        rows += [("odometer_slip", start, start + duration)
+                 for start, duration, _ in config.odometer.slips]
+    for kind, start, end in rows:
+        record["fault_kind"].append(kind)
+        record["fault_start"].append(float(start))
+        record["fault_end"].append(float(end))
+    if record["fault_kind"]:
+        extra.update({"fault_kind": np.array(record["fault_kind"], dtype=str),
+                      "fault_start": np.array(record["fault_start"], dtype=float),
+                      "fault_end": np.array(record["fault_end"], dtype=float)})
     return imu_t, dtheta, dv
 
 

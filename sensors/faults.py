@@ -7,7 +7,9 @@ sample's rate and specific force offset by these on every axis); ``saturation =
 [[start_s, duration_s], ...]`` (the gyro and accelerometer x axes stuck at full scale);
 ``gaps = [[start_s, duration_s], ...]`` (samples missing from the stream: their
 timestamps are absent, the others keep theirs); ``nans = [time_s, ...]`` (one sample of
-NaN on every axis).
+NaN on every axis); ``gimbal_stalls = [[start_s, duration_s], ...]`` (the gimbal stops
+and later resumes where it stopped, ``models.world.stalled``; the scenario's motion
+carries them, and the encoders show them).
 """
 from __future__ import annotations
 
@@ -39,16 +41,25 @@ class ImuFaults:
     saturation: tuple[tuple[float, float], ...] = ()
     gaps: tuple[tuple[float, float], ...] = ()
     nans: tuple[float, ...] = ()
+    gimbal_stalls: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "spikes", number_rows(self.spikes, 3, "faults.spikes",
                                                        "[time_s, gyro_deg_s, accel_m_s2]"))
-        for name in ("saturation", "gaps"):
+        for name in ("saturation", "gaps", "gimbal_stalls"):
             rows = number_rows(getattr(self, name), 2, f"faults.{name}",
                                "[start_s, duration_s]")
             if any(d <= 0.0 for _, d in rows):
                 raise ValueError(f"faults.{name}: each duration must be > 0 s")
             object.__setattr__(self, name, rows)
+        from models.world import STALL_RAMP
+        stalls = sorted(self.gimbal_stalls)
+        if any(d < STALL_RAMP for _, d in stalls):
+            raise ValueError(f"faults.gimbal_stalls: each duration must be >= {STALL_RAMP:g} s "
+                             "(the gimbal's stop)")
+        if any(s2 < s1 + d1 + STALL_RAMP for (s1, d1), (s2, _) in zip(stalls, stalls[1:])):
+            raise ValueError("faults.gimbal_stalls: stalls must not overlap (each starts "
+                             f">= {STALL_RAMP:g} s after the previous one ends)")
         try:
             nans = tuple(float(v) for v in self.nans)
         except (TypeError, ValueError):
@@ -60,15 +71,17 @@ class ImuFaults:
     def check(self, duration: float) -> None:
         """ValueError naming the field for a fault outside the run [0, duration] s."""
         for name, rows in (("spikes", self.spikes), ("saturation", self.saturation),
-                           ("gaps", self.gaps), ("nans", [(t,) for t in self.nans])):
+                           ("gaps", self.gaps), ("nans", [(t,) for t in self.nans]),
+                           ("gimbal_stalls", self.gimbal_stalls)):
             for row in rows:
-                end = row[0] + (row[1] if name in ("saturation", "gaps") else 0.0)
+                end = row[0] + (row[1] if len(row) == 2 else 0.0)
                 if not (0.0 < row[0] and end <= duration):
                     raise ValueError(f"faults.{name}: {row[0]:g} s (to {end:g} s) is outside "
                                      f"the run (0, {duration:g}] s")
 
     @property
     def any(self) -> bool:
+        """Whether the IMU increments carry a fault (the stalls are in the motion)."""
         return bool(self.spikes or self.saturation or self.gaps or self.nans)
 
     def apply(self, imu_t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float,

@@ -1,7 +1,8 @@
-"""IMU data faults in scenario files (SPEC 4.6) and the pipelines' screen: each fault is
-in the episode's record, flagged with its kind at its first sample's time, repaired
-onto the run's grid; no fault-free shipped scenario is flagged; a campaign counts the
-flagged episodes and its filters survive."""
+"""Data faults in scenario files (SPEC 4.6) and the pipelines' screen: each fault (IMU,
+gimbal stall, GNSS outage and outlier, odometer slip) is in the episode's record,
+flagged with its kind at its time, the IMU's repaired onto the run's grid; no
+fault-free shipped scenario is flagged; a campaign counts the flagged episodes and its
+filters survive."""
 import numpy as np
 import pytest
 
@@ -90,10 +91,10 @@ def test_a_campaign_counts_flagged_episodes_and_its_filters_survive(tmp_path):
         exp = experiment("paper002", scenario=scenario, fine_duration=300.0)
         runs[label] = run_campaign(exp, episodes=2, seed=1, filters=["ukf"], workers=1,
                                    progress=False)
-    faults = runs["faults"].summary()["imu_faults"]
+    faults = runs["faults"].summary()["data_faults"]
     assert faults["flagged_episodes"] == 2 and faults["by_kind"]["gap"] == 2
-    assert runs["clean"].summary()["imu_faults"]["flagged_episodes"] == 0
-    assert "2 of 2 episodes flagged" in format_tables(runs["faults"])
+    assert runs["clean"].summary()["data_faults"]["flagged_episodes"] == 0
+    assert "Data faults flagged: 2 of 2 episodes" in format_tables(runs["faults"])
     clean, faulty = (runs[k].runs[0] for k in ("clean", "faults"))
     assert not faulty.diverged.any()
     # the repaired data cost the filter next to nothing (arcmin, final)
@@ -112,3 +113,95 @@ def test_bad_fault_tables_are_one_line_errors(tmp_path, table, field):
         with_faults(tmp_path, "ship-sway-rotary", 60.0, "\n" + table + "\n")
     message = str(error.value)
     assert field in message and "\n" not in message
+
+
+SENSOR_FAULTS = {
+    # scenario: (duration s, text added to its [gps] / [odometer] table, [faults] table,
+    #            {kind: time s})
+    "ship-sway-rotary": (60.0, "", "[faults]\ngimbal_stalls = [[30.0, 1.0]]\n",
+                         {"gimbal_stall": 30.0}),
+    "usv-mems-swing": (320.0, "outages_s = [[100.0, 110.0]]\n"
+                       "outliers = [[150.0, 30.0, -20.0, 0.0]]\n",
+                       "[faults]\ngimbal_stalls = [[302.0, 1.0]]\n",
+                       {"gnss_outage": 100.0, "gnss_outlier": 150.0, "gimbal_stall": 302.0}),
+    "usv-mems-waves": (320.0, "", "[faults]\ngimbal_stalls = [[302.0, 1.0]]\n",
+                       {"gimbal_stall": 302.0}),
+    "figure8-gps": (200.0, "outages_s = [[100.0, 110.0]]\noutliers = [[150.0, 10.0, 0.0, 0.0]]\n",
+                    "", {"gnss_outage": 100.0, "gnss_outlier": 150.0}),
+    "ring-road-odometer": (150.0, "slips = [[120.0, 0.3, 0.5]]\n", "",
+                           {"odometer_slip": 120.0}),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SENSOR_FAULTS))
+def test_every_sensor_fault_is_flagged_at_its_time(tmp_path, name):
+    """Gimbal stalls (the constant-rate gimbal, and the indexer mid-slew on the prescribed
+    and the wave-driven boat), GNSS outages and outliers (1 Hz fixes, RTK and 2.5 m
+    single-point) and an odometer slip burst are each in the record and flagged once,
+    within 0.2 s of their start (a filter epoch is 1 s), and nothing else is."""
+    duration, sensor_rows, table, expected = SENSOR_FAULTS[name]
+    text = (DATA_DIR / f"{name}.toml").read_text()
+    for section in ("[gps]\n", "[odometer]\n"):
+        if sensor_rows and section in text:
+            text = text.replace(section, section + sensor_rows)
+    path = tmp_path / f"{name}-faults.toml"
+    path.write_text(text + table)
+    config = load_scenario(str(path)).with_options(duration=duration)
+    episode, flags = simulate_screened(config, seed=2)
+    record = dict(zip(episode.extra["fault_kind"], episode.extra["fault_start"]))
+    assert record == expected
+    found = list(zip(flags["fault_kind"], flags["fault_time"]))
+    assert sorted(kind for kind, _ in found) == sorted(expected), found
+    for kind, when in found:
+        assert 0.0 <= when - expected[kind] < 0.2, (kind, when)
+
+
+def test_a_stalled_gimbal_stops_and_resumes_late():
+    """The stall's time warp: the rates vanish inside the stall, afterwards the motion is
+    the nominal one delayed by the stall's duration; rates and accelerations are the
+    derivatives of the angles (finite differences), continuous through both ramps."""
+    from models.ship import ShipSwayMotion
+    from models.world import STALL_RAMP
+    nominal = ShipSwayMotion()
+    motion = ShipSwayMotion(gimbal_stalls=((100.0, 2.0),))
+    t = np.arange(99.0, 103.0, 1e-4)
+    angle, rate, accel = motion.gimbal_state(t)
+    inside = (t >= 100.0 + STALL_RAMP) & (t <= 102.0)
+    assert np.abs(rate[inside]).max() < 1e-12
+    after = t >= 102.0 + STALL_RAMP
+    np.testing.assert_allclose(angle[after], nominal.gimbal_state(t[after] - 2.0)[0],
+                               rtol=0, atol=1e-12)
+    before = t <= 100.0
+    np.testing.assert_array_equal(angle[before], nominal.gimbal_state(t[before])[0])
+    np.testing.assert_allclose(np.gradient(angle, t, axis=0)[1:-1], rate[1:-1], atol=1e-7)
+    np.testing.assert_allclose(np.gradient(rate, t, axis=0)[1:-1], accel[1:-1], atol=1e-5)
+    assert np.abs(np.diff(accel, axis=0)).max() < 1e-2      # no step (peak ~3 rad/s^2)
+
+
+def test_the_expected_indexer_motion_is_the_servo_without_the_hull():
+    """The screen's expectation of an indexer, its servo's linear response to the
+    command, follows MuJoCo's servo in the swaying hull through a slew to 5e-4 rad (the
+    hull's excitation of the rotor; the servo lags the command by 0.03 rad)."""
+    config = load_scenario("usv-mems-swing").with_options(duration=320.0)
+    t = np.arange(295.0, 315.0, 0.01)
+    expected = config.motion.expected_gimbal_angles(t)[:, 0]
+    simulated = config.motion.gimbal_state(t)[0][:, 0]
+    assert np.abs(expected - simulated).max() < 5e-4
+    assert np.abs(config.motion.indexer.command(t, 320.0) - simulated).max() > 0.02
+
+
+@pytest.mark.parametrize("table, message", [
+    ("[faults]\ngimbal_stalls = [[10.0, 0.1]]", "faults.gimbal_stalls: each duration must be >= 0.2"),
+    ("[faults]\ngimbal_stalls = [[10.0, 1.0], [11.1, 1.0]]", "faults.gimbal_stalls: stalls must not overlap"),
+    ("[faults]\ngimbal_stalls = [[59.5, 1.0]]", "faults.gimbal_stalls: 59.5 s"),
+])
+def test_bad_stalls_are_one_line_errors(tmp_path, table, message):
+    with pytest.raises(ConfigError) as error:
+        with_faults(tmp_path, "ship-sway-rotary", 60.0, "\n" + table + "\n")
+    assert message in str(error.value) and "\n" not in str(error.value)
+
+
+def test_a_stall_needs_a_gimbal(tmp_path):
+    with pytest.raises(ConfigError, match="faults.gimbal_stalls: the static-platform scenario"):
+        with_faults(tmp_path, "static-large-azimuth", 60.0,
+                    "\n[faults]\ngimbal_stalls = [[10.0, 1.0]]\n")

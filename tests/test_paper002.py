@@ -84,9 +84,9 @@ def test_bench_paper002_json_and_resume(tmp_path):
             str(out), "--workers", "1"]
     assert main(args + ["--json", str(tmp_path / "a.json")]) == 0
     summary = json.loads((tmp_path / "a.json").read_text())
-    assert set(summary) == {"fine", "imu_faults"}
+    assert set(summary) == {"fine", "data_faults"}
     assert set(summary["fine"]) == {"ekf", "sghkf-2"}
-    assert summary["imu_faults"]["flagged_episodes"] == 0
+    assert summary["data_faults"]["flagged_episodes"] == 0
     for stats in summary["fine"].values():
         assert set(stats) == {"mean_arcmin", "std_arcmin", "rms_arcmin", "diverged_fraction",
                               "convergence_s", "points", "us_per_epoch"}

@@ -124,7 +124,7 @@ def test_campaign_outputs_and_json_shape(sway_campaign, tmp_path):
                  "fine_error_max.png"):
         assert (out / name).stat().st_size > 0
     summary = json.loads(json_path.read_text())
-    assert set(summary) == {"coarse", "fine", "imu_faults"}
+    assert set(summary) == {"coarse", "fine", "data_faults"}
     assert set(summary["coarse"]) == {"mean_deg", "max_deg", "min_deg"}
     assert all(len(v) == 3 for v in summary["coarse"].values())
     for per_start in summary["fine"].values():
