@@ -119,15 +119,10 @@ def screen_imu(imu_t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, dt: float,
                        start=np.array(starts)[order], end=np.array(ends)[order])
 
 
-STALL_WINDOW = 0.1
-"""s: the encoders' and the commands' angle changes are compared over this window."""
 STALL_TOLERANCE = 2e-3
-"""rad: a gimbal axis whose angle change over STALL_WINDOW falls this far from the
-commanded change is stalled (quantisation and the hull's excitation of the rotor move
-a window's change by < 1e-4 rad; a stall of an axis turning at 6 deg/s shows 0.01)."""
-STALL_MERGE = 10.0
-"""s: stall flags closer than this are one stall (a stalled indexer resumes its slew late,
-which the windows see again at the slew's end)."""
+"""rad: a gimbal axis this far from the angle its commands give (both counted from the
+run's start) is stalled. Quantisation and the hull's excitation of an indexer's rotor
+keep it within 4e-4 rad; an axis stalling at 6 deg/s is this far off within 0.13 s."""
 OUTLIER_MADS = 6.0
 """A GNSS fix is an outlier when its position is off the velocities' path by more than
 this many robust standard deviations of the scenario's path residuals, both ways."""
@@ -136,17 +131,13 @@ this many robust standard deviations of the scenario's path residuals, both ways
 def screen_gimbal(t: np.ndarray, encoder: np.ndarray, expected: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Stalls of a gimbal: encoder readings and the angles the commands give (both
-    (M+1, 2) rad at times t (M+1,) s; the encoders' constant offsets cancel). Returns the
-    flags' kind (F,) ("gimbal_stall") and time (F,) s: the end of the first window
-    (``STALL_WINDOW``) whose angle change falls ``STALL_TOLERANCE`` off the command's
-    (flags within ``STALL_MERGE`` of the previous one are the same stall)."""
-    n = max(1, int(round(STALL_WINDOW / (t[1] - t[0]))))
-    deficit = (encoder[n:] - encoder[:-n]) - (expected[n:] - expected[:-n])
-    stalled = np.any(np.abs(deficit) > STALL_TOLERANCE, axis=1)
-    times: list[float] = []
-    for first, _ in _runs(stalled):
-        if not times or t[n + first] - times[-1] > STALL_MERGE:
-            times.append(float(t[n + first]))
+    (M+1, 2) rad at times t (M+1,) s), each counted from the first (the encoders'
+    constant offsets cancel). Returns the flags' kind (F,) ("gimbal_stall") and time
+    (F,) s: the first sample of each stretch in which some axis is more than
+    ``STALL_TOLERANCE`` off (the stall and its catch-up are one stretch)."""
+    deviation = (encoder - encoder[0]) - (expected - expected[0])
+    stretches = _runs(np.any(np.abs(deviation) > STALL_TOLERANCE, axis=1))
+    times = [float(t[first]) for first, _ in stretches]
     return np.array(["gimbal_stall"] * len(times), dtype=str), np.array(times, dtype=float)
 
 

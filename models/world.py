@@ -65,26 +65,33 @@ body z, inner about x; C_s_b = Rz(outer) Rx(inner))."""
 STALL_RAMP = 0.2
 """s: a stalled gimbal decelerates to rest, and later re-accelerates, over this time
 (a septic smoothstep, so the angles and their first four derivatives stay continuous)."""
+STALL_CATCH_UP = 2.0
+"""After a stall of duration d the gimbal catches up with its schedule over
+STALL_CATCH_UP x d (s), at up to 1 + 2.19 / STALL_CATCH_UP times its scheduled rate."""
 
 
-def _smoothstep(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _smoothstep(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The septic smoothstep S(x) = 35x^4 - 84x^5 + 70x^6 - 20x^7 on [0, 1] (0 before, 1
-    after; its first three derivatives vanish at both ends), its derivative S'(x) =
-    140 x^3 (1 - x)^3 and its integral from 0 (1/2 + (x - 1) beyond 1)."""
+    after; its first three derivatives vanish at both ends), its derivatives
+    S'(x) = 140 x^3 (1 - x)^3 and S''(x) = 420 x^2 (1 - x)^2 (1 - 2x), and its integral
+    from 0 (1/2 + (x - 1) beyond 1)."""
     inside = np.clip(x, 0.0, 1.0)
     value = inside ** 4 * (35.0 + inside * (-84.0 + inside * (70.0 - 20.0 * inside)))
     slope = 140.0 * inside ** 3 * (1.0 - inside) ** 3
+    curvature = 420.0 * inside ** 2 * (1.0 - inside) ** 2 * (1.0 - 2.0 * inside)
     integral = (inside ** 5 * (7.0 + inside * (-14.0 + inside * (10.0 - 2.5 * inside)))
                 + np.maximum(x - 1.0, 0.0))
-    return value, slope, integral
+    return value, slope, curvature, integral
 
 
 def stalled(motion: GimbalMotion, stalls: tuple[tuple[float, float], ...]) -> GimbalMotion:
-    """The gimbal ``motion`` with stalls (start s, duration s; durations >= STALL_RAMP,
-    windows apart): in each, every axis stops (after a STALL_RAMP deceleration) and later
-    resumes its motion where it stopped, so everything after runs the stalls' total
-    duration late. A time warp tau(t) with weight w = dtau/dt: angle = base(tau),
-    rate = base_rate(tau) w, acceleration = base_accel(tau) w^2 + base_rate(tau) w'."""
+    """The gimbal ``motion`` with stalls (start s, duration d s; d >= STALL_RAMP): in
+    each, every axis stops (a STALL_RAMP deceleration from the start) and stays until
+    start + d, then re-accelerates and catches up with its schedule over
+    STALL_CATCH_UP x d, as a servo following its command does (a stall of an axis at
+    rest changes nothing). A time warp tau(t) with weight w = dtau/dt >= 0:
+    angle = base(tau), rate = base_rate(tau) w,
+    acceleration = base_accel(tau) w^2 + base_rate(tau) w'."""
     if not stalls:
         return motion
 
@@ -92,11 +99,16 @@ def stalled(motion: GimbalMotion, stalls: tuple[tuple[float, float], ...]) -> Gi
         t = np.asarray(t, dtype=float)
         tau, w, dw = t.copy(), np.ones_like(t), np.zeros_like(t)
         for start, duration in stalls:
-            for sign, edge in ((1.0, start), (-1.0, start + duration)):
-                value, slope, integral = _smoothstep((t - edge) / STALL_RAMP)
+            for sign, edge in ((1.0, start), (-1.0, start + duration)):    # the stop
+                value, slope, _, integral = _smoothstep((t - edge) / STALL_RAMP)
                 tau -= sign * STALL_RAMP * integral
                 w -= sign * value
                 dw -= sign * slope / STALL_RAMP
+            catch_up = STALL_CATCH_UP * duration                           # the lag made up
+            value, slope, curvature, _ = _smoothstep((t - start - duration) / catch_up)
+            tau += duration * value
+            w += duration / catch_up * slope
+            dw += duration / catch_up ** 2 * curvature
         angle, rate, accel = motion(tau)
         return angle, rate * w[:, None], accel * (w ** 2)[:, None] + rate * dw[:, None]
 

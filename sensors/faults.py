@@ -7,8 +7,8 @@ sample's rate and specific force offset by these on every axis); ``saturation =
 [[start_s, duration_s], ...]`` (the gyro and accelerometer x axes stuck at full scale);
 ``gaps = [[start_s, duration_s], ...]`` (samples missing from the stream: their
 timestamps are absent, the others keep theirs); ``nans = [time_s, ...]`` (one sample of
-NaN on every axis); ``gimbal_stalls = [[start_s, duration_s], ...]`` (the gimbal stops
-and later resumes where it stopped, ``models.world.stalled``; the scenario's motion
+NaN on every axis); ``gimbal_stalls = [[start_s, duration_s], ...]`` (the gimbal stops,
+then catches up with its schedule, ``models.world.stalled``; the scenario's motion
 carries them, and the encoders show them).
 """
 from __future__ import annotations
@@ -52,14 +52,16 @@ class ImuFaults:
             if any(d <= 0.0 for _, d in rows):
                 raise ValueError(f"faults.{name}: each duration must be > 0 s")
             object.__setattr__(self, name, rows)
-        from models.world import STALL_RAMP
+        from models.world import STALL_CATCH_UP, STALL_RAMP
         stalls = sorted(self.gimbal_stalls)
         if any(d < STALL_RAMP for _, d in stalls):
             raise ValueError(f"faults.gimbal_stalls: each duration must be >= {STALL_RAMP:g} s "
                              "(the gimbal's stop)")
-        if any(s2 < s1 + d1 + STALL_RAMP for (s1, d1), (s2, _) in zip(stalls, stalls[1:])):
+        if any(s2 < s1 + (1.0 + STALL_CATCH_UP) * d1
+               for (s1, d1), (s2, _) in zip(stalls, stalls[1:])):
             raise ValueError("faults.gimbal_stalls: stalls must not overlap (each starts "
-                             f">= {STALL_RAMP:g} s after the previous one ends)")
+                             f"after the previous one's catch-up, {STALL_CATCH_UP:g} x its "
+                             "duration after its end)")
         try:
             nans = tuple(float(v) for v in self.nans)
         except (TypeError, ValueError):

@@ -156,26 +156,31 @@ def test_every_sensor_fault_is_flagged_at_its_time(tmp_path, name):
         assert 0.0 <= when - expected[kind] < 0.2, (kind, when)
 
 
-def test_a_stalled_gimbal_stops_and_resumes_late():
-    """The stall's time warp: the rates vanish inside the stall, afterwards the motion is
-    the nominal one delayed by the stall's duration; rates and accelerations are the
-    derivatives of the angles (finite differences), continuous through both ramps."""
+def test_a_stalled_gimbal_stops_then_catches_up():
+    """The stall's time warp: the rates vanish inside the stall, where the gimbal is the
+    stall's duration behind its schedule less the STALL_RAMP stop; after the catch-up
+    the motion is the nominal one again; rates and accelerations are the derivatives of
+    the angles (finite differences), continuous through the stop and the catch-up."""
     from models.ship import ShipSwayMotion
-    from models.world import STALL_RAMP
+    from models.world import STALL_CATCH_UP, STALL_RAMP
     nominal = ShipSwayMotion()
     motion = ShipSwayMotion(gimbal_stalls=((100.0, 2.0),))
-    t = np.arange(99.0, 103.0, 1e-4)
+    t = np.arange(99.0, 100.0 + 2.0 * (1.0 + STALL_CATCH_UP) + 1.0, 1e-4)
     angle, rate, accel = motion.gimbal_state(t)
     inside = (t >= 100.0 + STALL_RAMP) & (t <= 102.0)
     assert np.abs(rate[inside]).max() < 1e-12
-    after = t >= 102.0 + STALL_RAMP
-    np.testing.assert_allclose(angle[after], nominal.gimbal_state(t[after] - 2.0)[0],
-                               rtol=0, atol=1e-12)
+    # stopped at the schedule's angle of 100 + STALL_RAMP / 2 (the stop's mean time)
+    np.testing.assert_allclose(angle[inside], nominal.gimbal_state(
+        np.full(inside.sum(), 100.0 + STALL_RAMP / 2))[0], rtol=0, atol=1e-12)
+    after = t >= 102.0 + STALL_CATCH_UP * 2.0
     before = t <= 100.0
-    np.testing.assert_array_equal(angle[before], nominal.gimbal_state(t[before])[0])
+    for mask in (before, after):
+        np.testing.assert_allclose(angle[mask], nominal.gimbal_state(t[mask])[0],
+                                   rtol=0, atol=1e-12)
     np.testing.assert_allclose(np.gradient(angle, t, axis=0)[1:-1], rate[1:-1], atol=1e-7)
     np.testing.assert_allclose(np.gradient(rate, t, axis=0)[1:-1], accel[1:-1], atol=1e-5)
     assert np.abs(np.diff(accel, axis=0)).max() < 1e-2      # no step (peak ~3 rad/s^2)
+    assert rate[:, 1].max() < 2.2 * nominal.gimbal_inner_rate   # the catch-up's rate
 
 
 def test_the_expected_indexer_motion_is_the_servo_without_the_hull():
@@ -192,7 +197,7 @@ def test_the_expected_indexer_motion_is_the_servo_without_the_hull():
 
 @pytest.mark.parametrize("table, message", [
     ("[faults]\ngimbal_stalls = [[10.0, 0.1]]", "faults.gimbal_stalls: each duration must be >= 0.2"),
-    ("[faults]\ngimbal_stalls = [[10.0, 1.0], [11.1, 1.0]]", "faults.gimbal_stalls: stalls must not overlap"),
+    ("[faults]\ngimbal_stalls = [[10.0, 1.0], [12.9, 1.0]]", "faults.gimbal_stalls: stalls must not overlap"),
     ("[faults]\ngimbal_stalls = [[59.5, 1.0]]", "faults.gimbal_stalls: 59.5 s"),
 ])
 def test_bad_stalls_are_one_line_errors(tmp_path, table, message):
