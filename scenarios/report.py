@@ -63,7 +63,7 @@ def campaign_settings(result: CampaignResult, command: list[str] | None = None) 
         except PackageNotFoundError:
             versions[package] = "not installed"
     return {
-        "paper": exp.paper, "scenario": config.name, "scenario_file": str(source),
+        "paper": f"paper{exp.paper}", "scenario": config.name, "scenario_file": str(source),
         "scenario_toml": source.read_text(), "experiment": json.loads(json.dumps(
             asdict(exp), default=str)),
         "seed": result.seed, "episodes": len(result.seeds), "seeds": list(result.seeds),
