@@ -176,8 +176,9 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--address", metavar="ADDR",
                        help="with --executor ray: the cluster to join ('auto', "
                        "'ray://HOST:10001'; default: start a local instance)")
-    rep = sub.add_parser("report", help="write DIR/report.html: one self-contained page of a "
-                         "campaign directory (settings, tables, results, figures)")
+    rep_help = ("write DIR/report.html: one self-contained page of a campaign directory "
+                "(settings, tables, results, figures)")
+    rep = sub.add_parser("report", help=rep_help, description=rep_help)
     rep.add_argument("dir", metavar="DIR", help="a bench --out directory (or a directory of "
                      "them, as bench paper004 --swing all writes)")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
