@@ -232,6 +232,12 @@ def _limit(values: list[np.ndarray], floor: float = 1e-3) -> float:
     return 1.08 * max(top, floor)
 
 
+def _finite_median(values: np.ndarray) -> np.ndarray:
+    """The median (1,) of the finite values, or none (0,)."""
+    finite = values[np.isfinite(values)]
+    return np.median(finite, keepdims=True) if finite.size else finite
+
+
 def _diverged_label(count: int, episodes: int) -> str:
     return f", {count} of {episodes} diverged" if count else ""
 
@@ -271,8 +277,8 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
             sel = [b.t >= lo - 1e-9 for b in bands]
             # The whole run: the band sets the scale (the start's 3 sigma would flatten
             # the level axes), with the 3 sigma's median; the tail: band and 3 sigma.
-            sigma = ([np.nanmedian(b.sigma3_arcmin[:, axis], keepdims=True) for b in bands]
-                     if lo == 0.0 and ax is full else
+            sigma = ([_finite_median(b.sigma3_arcmin[:, axis]) for b in bands]
+                     if ax is full else
                      [b.sigma3_arcmin[s, axis] for b, s in zip(bands, sel)])
             limit = _limit([b.low_arcmin[s, axis] for b, s in zip(bands, sel)]
                            + [b.high_arcmin[s, axis] for b, s in zip(bands, sel)] + sigma)

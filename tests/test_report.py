@@ -145,6 +145,29 @@ def test_error_band_with_every_episode_diverged_is_empty_but_counted():
     assert band.diverged_error_arcmin.shape == (3, 4, 3)
 
 
+def test_figures_draw_diverged_episodes_without_warnings(tmp_path):
+    """A filter with every episode diverged (its errors NaN after the event) and one with
+    one of four: the four figures are drawn, without a NaN warning."""
+    import warnings
+    from scenarios.figures import write_figures
+    rng = np.random.default_rng(2)
+    K = 50
+    error = rng.normal(0.0, 1.0, (4, K, 3)) / (1.0 + np.arange(K))[:, None]
+    lost = error.copy()
+    lost[:, 20:] = np.nan
+    runs = [fake_run("good", error, np.ones_like(error), [False, False, True, False]),
+            fake_run("lost", lost, np.ones_like(error), [True] * 4)]
+    result = SimpleNamespace(runs=runs, seeds=[0, 1, 2, 3], experiment=SimpleNamespace(
+        starts=("s",), rms_window=10.0, heading_threshold_arcmin=0.5, nees_dof=lambda: 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        paths = write_figures(result, tmp_path)
+    assert [p.name for p in paths] == ["fine_error_s.png", "final_error_s.png",
+                                       "heading_convergence_s.png", "nees_s.png"]
+    for path in paths:
+        assert image_pixels(path).std() > 0.05
+
+
 def test_heading_convergence_counts_converged_not_converged_and_diverged():
     """Threshold 5': an episode ending at 7' has not converged (its time is the run's
     end), a diverged one is not counted as converged whatever its error."""
