@@ -224,6 +224,11 @@ class Experiment(ABC):
         """NEES (B, K+1) of the states the truth knows; NaN where not defined."""
         return np.full(error_n.shape[:2], np.nan)
 
+    def nees_dof(self) -> int:
+        """Dimension of the states ``nees`` compares with the truth: its chi-square degrees
+        of freedom (0: no NEES)."""
+        return 0
+
     def summary(self, result: "CampaignResult") -> dict:
         """The JSON summary."""
         return {"fine": fine_summary(result)}
@@ -288,6 +293,8 @@ class CampaignResult:
     episodes: list[PreparedEpisode]
     start_errors: dict[str, np.ndarray]
     runs: list[FilterRun] = field(default_factory=list)
+    seed: int | None = None
+    """The campaign seed the episode seeds derive from (``episode_seeds``)."""
 
     def summary(self) -> dict:
         """The experiment's JSON summary, with the data faults flagged ("data_faults")."""
@@ -541,7 +548,8 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     seeds = episode_seeds(seed, episodes)
     prepared = prepare_all(experiment, seeds, out, resume, workers, progress, executor,
                            address)
-    result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared))
+    result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared),
+                            seed=seed)
     jobs = [(f, s) for f in filters for s in experiment.starts]
     for name, start in tqdm(jobs, disable=not progress, desc="filters"):
         result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
@@ -553,7 +561,8 @@ def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
                     force: bool = False) -> None:
     """Create out, or check that it may be used: a directory holding a campaign needs
     resume (the same experiment and seed, from its campaign.json) or force (its episode
-    files, tables, series and plots are removed, so nothing of another seed mixes in)."""
+    files, tables, series, plots, settings and report are removed, so nothing of another
+    seed mixes in)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -580,7 +589,9 @@ def _check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
                               "or seed; use a new --out directory")
     if force and not resume:      # nothing of the old campaign survives to mix in
         for old in [*(out / "episodes").glob("seed_*.npz"), *out.glob("*.csv"),
-                    *out.glob("*.png"), out / "timeseries.npz", manifest]:
+                    *out.glob("*.png"), out / "timeseries.npz", out / "tables.txt",
+                    out / "summary.json", out / "settings.json", out / "report.html",
+                    manifest]:
             old.unlink(missing_ok=True)
     tmp = manifest.with_suffix(".tmp")
     tmp.write_text(json.dumps(current, indent=2))

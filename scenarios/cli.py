@@ -158,7 +158,9 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        "(biases raised to 3.5-4.5 deg/h and 4.5-5.5 mg) or the static "
                        "turntable (900 s; default: swing)")
     bench.add_argument("--out", metavar="DIR", help="directory for results.csv, coarse.csv, "
-                       "timeseries.npz, the plots and the per-episode files (default: none)")
+                       "timeseries.npz, tables.txt, summary.json, settings.json, the figures "
+                       "and the per-episode files; 'aligngym report DIR' makes a page of it "
+                       "(default: none)")
     bench.add_argument("--json", metavar="FILE",
                        help="write the summary as JSON (default: none)")
     bench.add_argument("--resume", action="store_true",
@@ -174,6 +176,11 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench.add_argument("--address", metavar="ADDR",
                        help="with --executor ray: the cluster to join ('auto', "
                        "'ray://HOST:10001'; default: start a local instance)")
+    rep_help = ("write DIR/report.html: one self-contained page of a campaign directory "
+                "(settings, tables, results, figures)")
+    rep = sub.add_parser("report", help=rep_help, description=rep_help)
+    rep.add_argument("dir", metavar="DIR", help="a bench --out directory (or a directory of "
+                     "them, as bench paper004 --swing all writes)")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
                          "its stored baseline; exit 1 when a metric moved beyond tolerance")
     reg.add_argument("--papers", default=",".join(PAPERS),
@@ -271,7 +278,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                               force=args.force)
         elapsed += time.perf_counter() - start
         print(format_tables(result))
-        for path in write_outputs(result, out, args.json if level is None else None):
+        for path in write_outputs(result, out, args.json if level is None else None,
+                                  command=args.command_line):
             print(f"wrote {path}")
         summaries.append(result.summary())
     if len(levels) > 1 and args.json:
@@ -323,6 +331,16 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
+def _cmd_report(args: argparse.Namespace) -> int:
+    from scenarios.html_report import write_report
+
+    start = time.perf_counter()
+    path = write_report(args.dir)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB, "
+          f"{time.perf_counter() - start:.2f} s)")
+    return 0
+
+
 def _cmd_regress(args: argparse.Namespace) -> int:
     from scenarios.regress import BASELINE_DIR, regress
 
@@ -337,6 +355,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(bench_details="bench" in argv and ("-h" in argv or "--help" in argv))
     args = parser.parse_args(argv)
+    args.command_line = ["aligngym", *argv]
     if args.command is None:      # a usage error: the usage, and status 2
         parser.print_help()
         return 2
@@ -349,6 +368,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_bench(args)
         if args.command == "regress":
             return _cmd_regress(args)
+        if args.command == "report":
+            return _cmd_report(args)
         return _cmd_fidelity(args)
     except ConfigError as exc:
         print(f"aligngym: error: {exc}", file=sys.stderr)

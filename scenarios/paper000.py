@@ -42,6 +42,9 @@ ROUGH_ROAD_RMS = 0.004
 NIS_LIMIT = 16.27
 """Innovation test: chi-square with 3 degrees of freedom at 0.999."""
 ANGLES = ("pitch", "roll", "heading")
+NEES_STATES = np.r_[0:3, 9:15]
+"""The states the NEES compares with the truth: Euler errors, gyro drift, accelerometer
+bias (9)."""
 
 
 @dataclass(frozen=True)
@@ -194,8 +197,10 @@ class Paper000Experiment(Experiment):
             s["gyro_bias"] + x[..., 9:12] - np.stack([e.gyro_bias for e in episodes])[:, None],
             s["accel_bias"] + x[..., 12:15]
             - np.stack([e.accel_bias for e in episodes])[:, None]], -1)
-        sub = np.r_[0:3, 9:15]
-        return nees(err, result.P[:, :, sub][:, :, :, sub])
+        return nees(err, result.P[:, :, NEES_STATES][:, :, :, NEES_STATES])
+
+    def nees_dof(self):
+        return NEES_STATES.size
 
     def summary(self, result):
         return paper000_summary(result)

@@ -215,6 +215,9 @@ class Paper001Experiment(Experiment):
         misalignment, the drawn constant biases), e frame."""
         return nees(state_errors(result, episodes, error_n), result.P)
 
+    def nees_dof(self):
+        return self.state_count
+
     def summary(self, result):
         return paper001_summary(result)
 

@@ -31,6 +31,9 @@ from scenarios.config import ConfigError, ScenarioConfig
 
 START = "large-azimuth"
 STATE_COUNT = 10
+NEES_STATES = LAYOUT.indices("euler_error", "accel_bias", "gyro_bias")
+"""The states the NEES compares with the truth: Euler error, accelerometer (x, y) and gyro
+biases (8)."""
 
 
 @dataclass(frozen=True)
@@ -156,8 +159,10 @@ class Paper002Experiment(Experiment):
             - result.x[:, :, LAYOUT["accel_bias"]],
             np.stack([e.gyro_bias for e in episodes])[:, None]
             - result.x[:, :, LAYOUT["gyro_bias"]]], -1)
-        sub = LAYOUT.indices("euler_error", "accel_bias", "gyro_bias")
-        return nees(err, result.P[:, :, sub][:, :, :, sub])
+        return nees(err, result.P[:, :, NEES_STATES][:, :, :, NEES_STATES])
+
+    def nees_dof(self):
+        return NEES_STATES.size
 
     def summary(self, result):
         return {"fine": paper002_summary(result)}

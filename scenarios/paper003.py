@@ -229,6 +229,10 @@ class Paper003Experiment(Experiment):
         sub = np.r_[PHI, EPS, NABLA]
         return nees(err, result.P[:, :, sub][:, :, :, sub])
 
+    def nees_dof(self):
+        """3 (attitude) with hull-frame biases, else 9 (attitude and biases)."""
+        return 3 if self.scenario_config().imu_bias_frame == "hull" else 9
+
     def summary(self, result):
         return {"coarse": coarse_summary(result), "fine": fine_summary(result)}
 

@@ -266,6 +266,9 @@ class Paper004Experiment(Experiment):
         return nees(state_errors(result, episodes, error_n),
                     result.P[..., _KNOWN[:, None], _KNOWN])
 
+    def nees_dof(self):
+        return _KNOWN.size
+
     def summary(self, result):
         return paper004_summary(result)
 

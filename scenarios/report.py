@@ -1,15 +1,19 @@
-"""Campaign output: the paper-shaped tables, a tidy per-episode table, time series, plots
-and the machine-readable JSON summary."""
+"""Campaign output: the paper-shaped tables, a tidy per-episode table, time series, the
+campaign figures (``scenarios.figures``), the machine-readable JSON summary and the
+settings that make an output directory self-describing (``aligngym report`` reads
+them)."""
 from __future__ import annotations
 
 import csv
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from models.units import arcmin
 from scenarios.campaign import AXES, CampaignResult, episode_metrics
+from scenarios.figures import write_figures
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
@@ -40,11 +44,53 @@ def tidy_rows(result: CampaignResult) -> list[dict]:
             for run in result.runs for b, seed in enumerate(result.seeds)]
 
 
+def campaign_settings(result: CampaignResult, command: list[str] | None = None) -> dict:
+    """What a campaign directory needs to describe itself: paper, scenario (name, source
+    file and its TOML text), the experiment's settings, campaign seed, episode seeds,
+    filters, starts, the command line, the versions and the time written (UTC)."""
+    import platform
+    import sys
+    from datetime import datetime, timezone
+    from importlib.metadata import PackageNotFoundError, version
+
+    exp = result.experiment
+    config = exp.scenario_config()
+    source = config_source(exp.scenario)
+    versions = {"python": platform.python_version()}
+    for package in ("aligngym", "numpy", "scipy", "mujoco", "matplotlib"):
+        try:
+            versions[package] = version(package)
+        except PackageNotFoundError:
+            versions[package] = "not installed"
+    return {
+        "paper": f"paper{exp.paper}", "scenario": config.name, "scenario_file": str(source),
+        "scenario_toml": source.read_text(), "experiment": json.loads(json.dumps(
+            asdict(exp), default=str)),
+        "seed": result.seed, "episodes": len(result.seeds), "seeds": list(result.seeds),
+        "filters": list(dict.fromkeys(run.filter for run in result.runs)),
+        "starts": list(exp.starts), "nees_dof": exp.nees_dof(),
+        "command": command,
+        "platform": f"{platform.system()} {platform.machine()}, {sys.implementation.name}",
+        "versions": versions,
+        "written_utc": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def config_source(scenario: str) -> Path:
+    """The TOML file of a scenario (a shipped name, or a path as ``load_scenario`` takes
+    it)."""
+    from scenarios.config import DATA_DIR
+    path = Path(scenario)
+    return path.resolve() if path.suffix == ".toml" else DATA_DIR / f"{scenario}.toml"
+
+
 def write_outputs(result: CampaignResult, out_dir: str | Path | None,
-                  json_path: str | Path | None) -> list[Path]:
-    """Write results.csv, coarse.csv (experiments with a coarse stage), timeseries.npz,
-    error plots (PNG) to out_dir, and the JSON summary to json_path. Returns the paths
-    written."""
+                  json_path: str | Path | None, command: list[str] | None = None
+                  ) -> list[Path]:
+    """Write to out_dir results.csv, coarse.csv (experiments with a coarse stage),
+    timeseries.npz, tables.txt (``format_tables``), summary.json (the JSON summary),
+    settings.json (``campaign_settings``; command: the command line, for the record), the
+    campaign figures (``scenarios.figures``) and the experiment's own (PNG); and the JSON
+    summary to json_path. Returns the paths written."""
     written = []
     if json_path is not None:
         path = Path(json_path)
@@ -75,42 +121,14 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
         series[f"{key}__sigma_arcmin"] = (run.result.sigma_n / arcmin).astype(np.float32)
         series[f"{key}__factors"] = run.result.factors.astype(np.float32)
         series[f"{key}__nees"] = run.nees.astype(np.float32)
+        series[f"{key}__diverged"] = np.asarray(run.diverged, bool)
     np.savez_compressed(out / "timeseries.npz", **series)
     written.append(out / "timeseries.npz")
-    written += plot_errors(result, out)
+    (out / "tables.txt").write_text(format_tables(result) + "\n")
+    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2))
+    (out / "settings.json").write_text(json.dumps(campaign_settings(result, command),
+                                                  indent=2))
+    written += [out / "tables.txt", out / "summary.json", out / "settings.json"]
+    written += write_figures(result, out)
     written += result.experiment.plots(result, out)
     return written
-
-
-def plot_errors(result: CampaignResult, out: Path) -> list[Path]:
-    """Per starting error: each filter's misalignment on the first episode with its +-3
-    sigma bound, one panel per axis (symmetric-log scale, arcmin)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    paths = []
-    for start in result.experiment.starts:
-        fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
-        for i, run in enumerate(r for r in result.runs if r.start == start):
-            color = f"C{i}"
-            t = run.result.t - run.result.t[0]
-            for axis, ax in enumerate(axes):
-                ax.plot(t, run.error_n[0, :, axis] / arcmin, color=color, label=run.filter)
-                bound = 3 * run.result.sigma_n[0, :, axis] / arcmin
-                ax.plot(t, bound, color=color, ls="--", lw=0.8)
-                ax.plot(t, -bound, color=color, ls="--", lw=0.8)
-        for axis, ax in enumerate(axes):
-            ax.set_yscale("symlog", linthresh=0.1)
-            ax.set_ylabel(f"{AXES[axis]} (arcmin)")
-            ax.grid(True, alpha=0.3)
-        axes[0].legend(ncol=4, fontsize=8)
-        axes[0].set_title(f"Fine alignment from the {start} start, seed "
-                          f"{result.seeds[0]} (dashed: +-3 sigma)")
-        axes[-1].set_xlabel("time since the start of fine alignment (s)")
-        fig.tight_layout()
-        path = out / f"fine_error_{start}.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        paths.append(path)
-    return paths

@@ -1,0 +1,494 @@
+"""Campaign figures: the spread of every filter over all episodes of a campaign.
+
+Per starting error, four PNG files (``write_figures``):
+
+- ``fine_error_<start>.png``: attitude error E, N, U (arcmin, linear) over the fine
+  alignment, per filter the median over the episodes that did not diverge, their 5-95 %
+  band and the filter's mean +-3 sigma; the diverged episodes as faint individual lines,
+  counted in the legend; the right column zooms on the experiment's RMS window;
+- ``final_error_<start>.png``: box plots of the final error per filter and axis;
+- ``heading_convergence_<start>.png``: the fraction of episodes whose heading has
+  converged, against time (empirical CDF of ``heading_convergence_s``);
+- ``nees_<start>.png``: mean and median NEES over time with their 95 % chi-square bands
+  for the experiment's NEES dimension (``Experiment.nees_dof``).
+
+The statistics are functions of the campaign result (``error_bands``, ``nees_curves``,
+``heading_convergence_cdfs``, ``mean_nees_band``, ``median_nees_band``), so they are
+checked apart from the drawing.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from models.units import arcmin
+
+AXIS_NAMES = ("East", "North", "Up")
+
+PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000",
+           "#999933")
+"""Okabe & Ito's colour-blind safe colours (their yellow replaced by olive, which reads on
+white)."""
+DASHES = ("solid", (0, (6, 2)), (0, (6, 2, 1.5, 2)), (0, (12, 3)), (0, (3, 2)),
+          (0, (6, 2, 1.5, 2, 1.5, 2)), (0, (9, 3, 3, 3)), (0, (2, 1)))
+"""Dash patterns of the filters' median lines (none is the fine dotted line of the
++-3 sigma bounds)."""
+SIGMA_DASH = (0, (1, 1.5))
+MAX_PLOTTED_EPOCHS = 2000
+"""Longer series are drawn at every n-th epoch (the statistics use every epoch)."""
+DPI = 100
+
+
+def line_style(i: int) -> dict:
+    """Colour and dash pattern of the i-th filter of a figure: 64 distinct pairs."""
+    return {"color": PALETTE[i % len(PALETTE)],
+            "linestyle": DASHES[(i + i // len(PALETTE)) % len(DASHES)]}
+
+
+@dataclass
+class ErrorBand:
+    """One filter's attitude error from one start over a campaign's episodes: t (K,) s
+    since the start of fine alignment; median_arcmin, low_arcmin, high_arcmin (K, 3) the
+    median and the 5th and 95th percentiles (E, N, U) over the episodes that did not
+    diverge (``included``, (B,)); sigma3_arcmin (K, 3) the mean over those episodes of
+    the filter's 3 sigma; diverged_error_arcmin (D, K, 3) the diverged episodes' errors.
+    With every episode diverged, the band is NaN and the mean 3 sigma is over all."""
+
+    filter: str
+    start: str
+    t: np.ndarray
+    median_arcmin: np.ndarray
+    low_arcmin: np.ndarray
+    high_arcmin: np.ndarray
+    sigma3_arcmin: np.ndarray
+    included: np.ndarray
+    diverged_error_arcmin: np.ndarray
+
+    @property
+    def episodes(self) -> int:
+        return int(self.included.size)
+
+    @property
+    def diverged_count(self) -> int:
+        return int(self.included.size - self.included.sum())
+
+
+def error_bands(result, percentiles: tuple[float, float] = (5.0, 95.0)) -> list[ErrorBand]:
+    """Per run of the campaign (filter x start) its ``ErrorBand``: median and the
+    ``percentiles`` (%) of the misalignment over the episodes not diverged (``run.diverged``,
+    the campaign's flag: numerical trouble or a final error beyond 5x its 3 sigma)."""
+    bands = []
+    for run in result.runs:
+        error = run.error_n / arcmin                       # (B, K, 3)
+        included = ~np.asarray(run.diverged, bool)
+        sigma3 = 3.0 * run.result.sigma_n / arcmin
+        if included.any():
+            low, median, high = np.percentile(error[included],
+                                              [percentiles[0], 50.0, percentiles[1]], axis=0)
+            sigma3_mean = sigma3[included].mean(axis=0)
+        else:
+            low = median = high = np.full(error.shape[1:], np.nan)
+            sigma3_mean = sigma3.mean(axis=0)
+        bands.append(ErrorBand(run.filter, run.start, run.result.t - run.result.t[0],
+                               median, low, high, sigma3_mean, included, error[~included]))
+    return bands
+
+
+@dataclass
+class NeesCurve:
+    """One filter's NEES from one start: t (K,) s; mean and median (K,) over the
+    episodes not diverged (NaN where none has a NEES); episodes: how many those are;
+    diverged: how many are left out."""
+
+    filter: str
+    start: str
+    t: np.ndarray
+    mean: np.ndarray
+    median: np.ndarray
+    episodes: int
+    diverged: int
+
+
+def nees_curves(result) -> list[NeesCurve]:
+    """Per run the mean and median NEES over the episodes not diverged, per epoch (the
+    first epoch, the prior, left out as in the tidy table's nees_mean)."""
+    curves = []
+    for run in result.runs:
+        included = ~np.asarray(run.diverged, bool)
+        nees = np.asarray(run.nees, float)[included, 1:]
+        finite = np.isfinite(nees)
+        mean = np.full(nees.shape[1], np.nan)
+        median = np.full(nees.shape[1], np.nan)
+        has = finite.any(axis=0)
+        if has.any():
+            mean[has] = np.nanmean(nees[:, has], axis=0)
+            median[has] = np.nanmedian(nees[:, has], axis=0)
+        t = run.result.t - run.result.t[0]
+        curves.append(NeesCurve(run.filter, run.start, t[1:], mean, median,
+                                int(included.sum()), int((~included).sum())))
+    return curves
+
+
+def mean_nees_band(dof: int, episodes: int, probability: float = 0.95
+                   ) -> tuple[float, float]:
+    """Two-sided ``probability`` band of the mean NEES of ``episodes`` consistent
+    episodes with ``dof`` states: the sum is chi-square with episodes x dof degrees of
+    freedom (Bar-Shalom, Li, Kirubarajan 2001, 5.4.2)."""
+    from scipy.stats import chi2
+    tail = (1.0 - probability) / 2.0
+    n = episodes * dof
+    return float(chi2.ppf(tail, n) / episodes), float(chi2.ppf(1.0 - tail, n) / episodes)
+
+
+def median_nees_band(dof: int, episodes: int, probability: float = 0.95
+                     ) -> tuple[float, float]:
+    """Two-sided ``probability`` band of the median NEES of ``episodes`` consistent
+    episodes with ``dof`` states, from the order statistics: the k-th smallest of B
+    uniforms is Beta(k, B + 1 - k), mapped through the chi-square(dof) quantile. For even
+    B (the median averages the B/2-th and the B/2+1-th) the band spans the lower one's
+    lower and the upper one's upper quantile (coverage at least ``probability``)."""
+    from scipy.stats import beta, chi2
+    tail = (1.0 - probability) / 2.0
+    k_low, k_high = (episodes + 1) // 2, episodes // 2 + 1
+    low = chi2.ppf(beta.ppf(tail, k_low, episodes + 1 - k_low), dof)
+    high = chi2.ppf(beta.ppf(1.0 - tail, k_high, episodes + 1 - k_high), dof)
+    return float(low), float(high)
+
+
+@dataclass
+class ConvergenceCdf:
+    """One filter's heading convergence from one start: times (C,) s, sorted, of the C
+    episodes that converged (heading error within the threshold from then to the end,
+    not diverged); episodes B in all; diverged; t_end s, the run's length."""
+
+    filter: str
+    start: str
+    times: np.ndarray
+    episodes: int
+    diverged: int
+    t_end: float
+
+    @property
+    def not_converged(self) -> int:
+        return self.episodes - self.diverged - int(self.times.size)
+
+
+def heading_convergence_cdfs(result) -> list[ConvergenceCdf]:
+    """Per run the convergence times (``run.heading_convergence``, the tidy table's
+    heading_convergence_s) of the episodes whose final heading error is within the
+    experiment's threshold and that did not diverge."""
+    threshold = result.experiment.heading_threshold_arcmin * arcmin
+    cdfs = []
+    for run in result.runs:
+        diverged = np.asarray(run.diverged, bool)
+        converged = ~diverged & (np.abs(run.error_n[:, -1, 2]) <= threshold)
+        t = run.result.t - run.result.t[0]
+        cdfs.append(ConvergenceCdf(run.filter, run.start,
+                                   np.sort(np.asarray(run.heading_convergence)[converged]),
+                                   int(diverged.size), int(diverged.sum()), float(t[-1])))
+    return cdfs
+
+
+def identical_runs(result) -> dict[tuple[str, str], str]:
+    """Runs whose attitude errors equal an earlier run's from the same start, bit for bit
+    (a fading-factor filter whose factors never left 1 is its KF): (filter, start) -> the
+    earlier filter. Their curves coincide; the legends say so."""
+    twins: dict[tuple[str, str], str] = {}
+    for i, run in enumerate(result.runs):
+        for earlier in result.runs[:i]:
+            if (earlier.start == run.start and (earlier.filter, earlier.start) not in twins
+                    and np.array_equal(earlier.error_n, run.error_n)):
+                twins[(run.filter, run.start)] = earlier.filter
+                break
+    return twins
+
+
+def _twin(twins: dict | None, item) -> str:
+    other = (twins or {}).get((item.filter, item.start))
+    return f" (= {other})" if other else ""
+
+
+# --------------------------------------------------------------------------------------
+# Drawing
+# --------------------------------------------------------------------------------------
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _stride(size: int) -> int:
+    return max(1, -(-size // MAX_PLOTTED_EPOCHS))
+
+
+def _limit(values: list[np.ndarray], floor: float = 1e-3) -> float:
+    """Symmetric y limit: the largest finite |value|, padded by 8 %."""
+    finite = [np.abs(v[np.isfinite(v)]) for v in values]
+    top = max((float(v.max()) for v in finite if v.size), default=1.0)
+    return 1.08 * max(top, floor)
+
+
+def _finite_median(values: np.ndarray) -> np.ndarray:
+    """The median (1,) of the finite values, or none (0,)."""
+    finite = values[np.isfinite(values)]
+    return np.median(finite, keepdims=True) if finite.size else finite
+
+
+def _diverged_label(count: int, episodes: int) -> str:
+    return f", {count} of {episodes} diverged" if count else ""
+
+
+def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Path,
+                     twins: dict | None = None) -> Path:
+    """fine_error_<start>.png: 3 rows (E, N, U) x 2 columns (the whole run; its last
+    ``window`` s). Median line in each filter's colour and dash, 5-95 % shade, mean
+    +-3 sigma dotted, diverged episodes faint with an x at their end."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 2, figsize=(13, 9.5), sharex="col",
+                             gridspec_kw={"width_ratios": (1.5, 1)})
+    t_end = max(float(b.t[-1]) for b in bands)
+    tail_start = max(0.0, t_end - window) if window < t_end else 0.5 * t_end
+    handles = []
+    for i, band in enumerate(bands):
+        style = line_style(i)
+        step = _stride(band.t.size)
+        t = band.t[::step]
+        for axis in range(3):
+            for ax in axes[axis]:
+                ax.fill_between(t, band.low_arcmin[::step, axis], band.high_arcmin[::step, axis],
+                                color=style["color"], alpha=0.14, lw=0)
+                for sign in (1.0, -1.0):
+                    ax.plot(t, sign * band.sigma3_arcmin[::step, axis], color=style["color"],
+                            linestyle=SIGMA_DASH, lw=0.9)
+                for error in band.diverged_error_arcmin:
+                    ax.plot(t, error[::step, axis], color=style["color"], lw=0.6, alpha=0.5,
+                            marker="x", markevery=[-1], markersize=5)
+                line, = ax.plot(t, band.median_arcmin[::step, axis], lw=1.8, **style)
+        handles.append((line, f"{band.filter}{_twin(twins, band)}: "
+                        f"{band.episodes - band.diverged_count} episodes"
+                        f"{_diverged_label(band.diverged_count, band.episodes)}"))
+    for axis in range(3):
+        full, tail = axes[axis]
+        for ax, lo in ((full, 0.0), (tail, tail_start)):
+            sel = [b.t >= lo - 1e-9 for b in bands]
+            # The whole run: the band sets the scale (the start's 3 sigma would flatten
+            # the level axes), with the 3 sigma's median; the tail: band and 3 sigma.
+            sigma = ([_finite_median(b.sigma3_arcmin[:, axis]) for b in bands]
+                     if ax is full else
+                     [b.sigma3_arcmin[s, axis] for b, s in zip(bands, sel)])
+            limit = _limit([b.low_arcmin[s, axis] for b, s in zip(bands, sel)]
+                           + [b.high_arcmin[s, axis] for b, s in zip(bands, sel)] + sigma)
+            ax.set_ylim(-limit, limit)
+            ax.axhline(0.0, color="0.5", lw=0.5)
+            ax.grid(True, alpha=0.3)
+        full.set_xlim(0.0, t_end)
+        tail.set_xlim(tail_start, t_end)
+        full.set_ylabel(f"{AXIS_NAMES[axis]} error (arcmin)")
+    axes[0, 0].set_title("whole fine alignment")
+    axes[0, 1].set_title(f"last {t_end - tail_start:g} s"
+                         + (" (the RMS window)" if window < t_end else ""))
+    for ax in axes[-1]:
+        ax.set_xlabel("time since the start of fine alignment (s)")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    extra = [(Patch(color="0.6", alpha=0.4), "5-95 % of the episodes not diverged"),
+             (Line2D([], [], color="0.3", linestyle=SIGMA_DASH, lw=0.9),
+              "filter's mean +-3 sigma"),
+             (Line2D([], [], color="0.3", lw=0.6, alpha=0.6, marker="x", markevery=[-1]),
+              "a diverged episode")]
+    fig.legend([h for h, _ in handles + extra], [label for _, label in handles + extra],
+               loc="upper center", ncol=min(4, len(handles) + len(extra)), fontsize=8,
+               frameon=False, bbox_to_anchor=(0.5, 0.97))
+    fig.suptitle(title + " (line: median)")
+    fig.subplots_adjust(left=0.07, right=0.99, bottom=0.06, top=0.87, hspace=0.1,
+                        wspace=0.13)   # fixed: tight_layout would double the cost
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_final_errors(result, start: str, path: Path) -> Path:
+    """final_error_<start>.png: per axis, a box per filter of the final error (arcmin) of
+    the episodes not diverged (box: quartiles, line: median, whiskers: 5-95 %, dots
+    beyond); the diverged ones as black x, clamped to the panel (triangles) when off
+    it."""
+    plt = _pyplot()
+    runs = [r for r in result.runs if r.start == start]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.8))
+    positions = np.arange(1, len(runs) + 1)
+    for axis, ax in enumerate(axes):
+        kept, values = [], []
+        for i, run in enumerate(runs):
+            ok = ~np.asarray(run.diverged, bool)
+            final = run.error_n[:, -1, axis] / arcmin
+            kept.append(final[ok] if ok.any() else np.array([np.nan]))
+            values.append(final[ok])
+        boxes = ax.boxplot(kept, positions=positions, whis=(5, 95), widths=0.6,
+                           patch_artist=True, flierprops={"markersize": 3})
+        for i, patch in enumerate(boxes["boxes"]):
+            patch.set(facecolor=line_style(i)["color"], alpha=0.45)
+        for median in boxes["medians"]:
+            median.set(color="k", lw=1.5)
+        limit = _limit(values)
+        ax.set_ylim(-limit, limit)
+        for i, run in enumerate(runs):
+            bad = run.error_n[np.asarray(run.diverged, bool), -1, axis] / arcmin
+            inside = np.abs(bad) <= limit
+            ax.plot(np.full(inside.sum(), positions[i]), bad[inside], "kx", markersize=7)
+            for value in bad[~inside]:
+                ax.plot(positions[i], np.sign(value) * limit * 0.97,
+                        "k^" if value > 0 else "kv", markersize=7)
+        ax.set_xticks(positions)
+        ax.set_xticklabels([run.filter + (f"\n{int(np.sum(run.diverged))} diverged"
+                                          if np.any(run.diverged) else "")
+                            for run in runs], fontsize=8)
+        ax.axhline(0.0, color="0.5", lw=0.5)
+        ax.set_title(f"{AXIS_NAMES[axis]}")
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[0].set_ylabel("final error (arcmin)")
+    fig.suptitle(f"Final attitude error from the {start} start, {len(result.seeds)} episodes "
+                 "(box: quartiles; whiskers: 5-95 %; x: diverged episode)")
+    fig.subplots_adjust(left=0.06, right=0.99, bottom=0.14, top=0.86, wspace=0.2)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float,
+                             start: str, path: Path, twins: dict | None = None) -> Path:
+    """heading_convergence_<start>.png: per filter the fraction of all episodes whose
+    heading has converged by time t (a step at each episode's convergence time); the
+    curve ends below 1 by the diverged and the never converged episodes."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(12, 5))
+    for i, cdf in enumerate(cdfs):
+        times = np.concatenate([[0.0], cdf.times, [cdf.t_end]])
+        fraction = np.concatenate([[0.0], np.arange(1, cdf.times.size + 1),
+                                   [cdf.times.size]]) / cdf.episodes
+        label = (f"{cdf.filter}{_twin(twins, cdf)}: {cdf.times.size} of {cdf.episodes} "
+                 "converged"
+                 + (f", {cdf.not_converged} not" if cdf.not_converged else "")
+                 + (f", {cdf.diverged} diverged" if cdf.diverged else ""))
+        ax.step(times, fraction, where="post", lw=1.8, label=label, **line_style(i))
+    ax.set_xlim(0.0, max(c.t_end for c in cdfs))
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("time since the start of fine alignment (s)")
+    ax.set_ylabel("fraction of the episodes converged")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.set_title(f"Heading convergence from the {start} start: |heading error| <= "
+                 f"{threshold_arcmin:g}' from then to the end")
+    fig.subplots_adjust(left=0.07, right=0.7, bottom=0.11, top=0.92)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
+              probability: float = 0.95, twins: dict | None = None) -> Path:
+    """nees_<start>.png: top, the mean NEES over the episodes not diverged with the
+    chi-square band of a mean of that many consistent episodes; bottom, the median with
+    its order-statistics band (log scale; dashed: the expected value ``dof``). The grey
+    band is for the most common episode count; a filter with another count has its own
+    band edges as thin lines."""
+    plt = _pyplot()
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    fig, axes = plt.subplots(2, 1, figsize=(13, 8), sharex=True)
+    counts = [c.episodes for c in curves if c.episodes]
+    common = max(set(counts), key=counts.count) if counts else 0
+    t_end = max(float(c.t[-1]) for c in curves)
+    for ax, stat, band, name in ((axes[0], "mean", mean_nees_band, "mean"),
+                                 (axes[1], "median", median_nees_band, "median")):
+        if common:
+            low, high = band(dof, common, probability)
+            ax.axhspan(low, high, color="0.6", alpha=0.3, lw=0,
+                       label=f"{probability:.0%} band of the {name} of {common} consistent "
+                       f"episodes [{low:.3g}, {high:.3g}]")
+        ax.axhline(dof, color="0.3", lw=0.8, ls="--", label=f"expected: {dof} states")
+        for i, curve in enumerate(curves):
+            style = line_style(i)
+            step = _stride(curve.t.size)
+            values = getattr(curve, stat)
+            label = (f"{curve.filter}{_twin(twins, curve)} ({curve.episodes} episodes"
+                     + (f", {curve.diverged} diverged left out" if curve.diverged else "")
+                     + ")")
+            ax.plot(curve.t[::step], values[::step], lw=1.6, label=label, **style)
+            if curve.episodes and curve.episodes != common:
+                for k, edge in enumerate(band(dof, curve.episodes, probability)):
+                    ax.axhline(edge, color=style["color"], lw=0.7, alpha=0.8,
+                               label=f"{curve.filter}: its band ({curve.episodes} episodes)"
+                               if k == 0 else None)
+        ax.set_yscale("log")
+        ax.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylabel(f"{name} NEES")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    axes[0].set_xlim(0.0, t_end)
+    axes[-1].set_xlabel("time since the start of fine alignment (s)")
+    axes[0].set_title(f"NEES of the {dof} states the truth knows, {start} start "
+                      "(episodes not diverged)")
+    fig.subplots_adjust(left=0.07, right=0.7, bottom=0.07, top=0.95, hspace=0.08)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def write_figures(result, out: Path) -> list[Path]:
+    """The four campaign figures per starting error (module docstring) in out; the NEES
+    figure only for an experiment with a NEES. Returns the paths written."""
+    exp = result.experiment
+    bands, cdfs = error_bands(result), heading_convergence_cdfs(result)
+    curves = nees_curves(result)
+    dof = exp.nees_dof()
+    twins = identical_runs(result)
+    paths = []
+    for start in exp.starts:
+        pick = lambda items: [x for x in items if x.start == start]  # noqa: E731
+        if not pick(bands):
+            continue
+        paths.append(plot_error_bands(
+            pick(bands), exp.rms_window,
+            f"Attitude error from the {start} start over {len(result.seeds)} episodes",
+            out / f"fine_error_{start}.png", twins))
+        paths.append(plot_final_errors(result, start, out / f"final_error_{start}.png"))
+        paths.append(plot_heading_convergence(pick(cdfs), exp.heading_threshold_arcmin,
+                                              start, out / f"heading_convergence_{start}.png",
+                                              twins))
+        nees = pick(curves)
+        if dof and any(np.isfinite(c.mean).any() for c in nees):
+            paths.append(plot_nees(nees, dof, start, out / f"nees_{start}.png",
+                                   twins=twins))
+    return paths
+
+
+FIGURE_CAPTIONS = {
+    "fine_error": "Attitude error (E, N, U; arcmin) over the fine alignment: per filter the "
+                  "median over the episodes not diverged (line), their 5-95 % band (shade) "
+                  "and the filter's mean +-3 sigma (dotted); diverged episodes as faint lines "
+                  "ending in x. Right: the experiment's RMS window.",
+    "final_error": "Final attitude error per filter and axis (arcmin): box = quartiles, "
+                   "whiskers = 5-95 % of the episodes not diverged; x = a diverged episode "
+                   "(a triangle when off the panel).",
+    "heading_convergence": "Fraction of all episodes whose heading error stays within the "
+                           "experiment's threshold from time t to the end (empirical CDF of "
+                           "the convergence time); diverged and never converged episodes "
+                           "keep a curve below 1.",
+    "nees": "NEES over time against its 95 % chi-square band (grey) for the mean (top) and "
+            "the median (bottom) of the episodes not diverged; dashed: the state count.",
+}
+
+
+def figure_caption(name: str) -> str:
+    """Caption of a campaign figure from its file name (an experiment's own figure: a
+    generic one)."""
+    stem = Path(name).stem
+    for prefix, caption in FIGURE_CAPTIONS.items():
+        if stem.startswith(prefix + "_"):
+            return caption
+    return "The experiment's own figure (README, the paper's section)."

@@ -1,0 +1,260 @@
+"""``aligngym report DIR``: one self-contained HTML page of a campaign directory.
+
+The page holds the scenario and its TOML, the settings and the command line, the
+paper-shaped tables (``tables.txt``), a per-filter summary of the tidy table
+(``results.csv``), the coarse-alignment errors (``coarse.csv``), the IMU screen's flags
+and every figure (PNG) of the directory, embedded as base64 data URIs: no external
+resource, so the file can be mailed or attached as it is. A directory of campaign
+directories (``bench paper004 --swing all --out DIR``) gives one page with a section
+each.
+"""
+from __future__ import annotations
+
+import base64
+import csv
+import json
+from html import escape
+from pathlib import Path
+
+import numpy as np
+
+from scenarios.config import ConfigError
+from scenarios.figures import FIGURE_CAPTIONS, figure_caption
+
+REQUIRED = ("settings.json", "results.csv", "tables.txt")
+"""Files of a campaign directory the report reads (``write_outputs`` writes them)."""
+
+STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1300px;
+       padding: 0 1em; color: #222; }
+h1 { font-size: 1.6em; } h2 { border-bottom: 2px solid #0072B2; padding-bottom: .2em; }
+pre { background: #f5f5f5; padding: .8em; overflow-x: auto; font-size: .85em; }
+table { border-collapse: collapse; font-size: .85em; margin: .5em 0 1em; }
+th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: left; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+th { background: #eef3f8; }
+figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: .9em; color: #444; max-width: 70em; }
+.note { color: #555; font-size: .9em; }
+"""
+
+
+def campaign_dirs(directory: str | Path) -> list[Path]:
+    """The campaign directories of DIR: DIR itself when it holds one, else its
+    immediate subdirectories that do. One-line ConfigError when DIR is missing or holds
+    none."""
+    root = Path(directory)
+    if not root.is_dir():
+        raise ConfigError(f"report DIR {root}: no such directory")
+    if _is_campaign(root):
+        return [root]
+    subdirs = sorted(p for p in root.iterdir() if p.is_dir() and _is_campaign(p))
+    if subdirs:
+        return subdirs
+    if (root / "campaign.json").is_file() or (root / "results.csv").is_file():
+        missing = ", ".join(name for name in REQUIRED if not (root / name).is_file())
+        raise ConfigError(f"report DIR {root}: campaign directory without {missing} "
+                          "(written by this version's bench); run the same "
+                          f"'aligngym bench ... --out {root} --resume' to add it")
+    raise ConfigError(f"report DIR {root}: not a campaign directory (no {REQUIRED[0]}, "
+                      f"{REQUIRED[1]}); write one with 'aligngym bench PAPER --out DIR'")
+
+
+def _is_campaign(path: Path) -> bool:
+    return all((path / name).is_file() for name in REQUIRED)
+
+
+def write_report(directory: str | Path) -> Path:
+    """Write DIR/report.html (module docstring); returns its path."""
+    root = Path(directory)
+    text = render_report(root)
+    path = root / "report.html"
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"report DIR {root}: cannot write report.html "
+                          f"({exc.strerror})") from None
+    return path
+
+
+def render_report(directory: str | Path) -> str:
+    """The report page of a campaign directory (or a directory of them), as HTML text."""
+    root = Path(directory)
+    dirs = campaign_dirs(root)
+    sections = [_campaign_section(d, d.name if d != root else "") for d in dirs]
+    settings = [_read_settings(d) for d in dirs]
+    title = "aligngym campaign: " + ", ".join(
+        dict.fromkeys(f"{s['paper']} on {s['scenario']}" for s in settings))
+    toc = ""
+    if len(dirs) > 1:
+        toc = "<ul>" + "".join(f'<li><a href="#{escape(_anchor(d.name))}">'
+                               f"{escape(d.name)}</a></li>" for d in dirs) + "</ul>"
+    return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+            "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+            f"<title>{escape(title)}</title>\n<link rel=\"icon\" href=\"data:,\">\n"
+            f"<style>{STYLE}</style>\n</head>\n<body>\n<h1>{escape(title)}</h1>\n"
+            f"<p class=\"note\">Report of {escape(str(root.resolve()))}; each figure and "
+            "table below is read from that directory.</p>\n" + toc
+            + "\n".join(sections) + "\n</body>\n</html>\n")
+
+
+def _anchor(name: str) -> str:
+    return "campaign-" + "".join(c if c.isalnum() else "-" for c in name)
+
+
+def _read_settings(directory: Path) -> dict:
+    path = directory / "settings.json"
+    try:
+        settings = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"report {path}: not a readable settings file ({exc})") from None
+    for key in ("paper", "scenario", "experiment"):
+        if key not in settings:
+            raise ConfigError(f"report {path}: missing key {key!r}")
+    return settings
+
+
+def _campaign_section(directory: Path, name: str) -> str:
+    settings = _read_settings(directory)
+    heading = f"{settings['paper']} on {settings['scenario']}" + (f": {name}" if name else "")
+    parts = [f'<section id="{escape(_anchor(name or "main"))}">',
+             f"<h2>{escape(heading)}</h2>", "<h3>Settings</h3>", _settings_table(settings)]
+    if settings.get("command"):
+        parts += ["<h3>Command line</h3>",
+                  f"<pre>{escape(' '.join(map(str, settings['command'])))}</pre>"]
+    if settings.get("scenario_toml"):
+        parts += [f"<h3>Scenario {escape(settings['scenario'])}</h3>",
+                  f"<details><summary>{escape(str(settings.get('scenario_file', '')))}"
+                  f"</summary><pre>{escape(settings['scenario_toml'])}</pre></details>"]
+    parts += ["<h3>Paper-shaped tables</h3>",
+              f"<pre class=\"tables\">{escape((directory / 'tables.txt').read_text())}</pre>",
+              "<h3>Results by filter and start</h3>",
+              "<p class=\"note\">From results.csv (one row per episode, filter and start); "
+              "final errors and NEES over the episodes not diverged: median, and in "
+              "brackets the 95th percentile of |final error| or the 90th of the "
+              "convergence time.</p>",
+              _results_summary(directory / "results.csv")]
+    if (directory / "coarse.csv").is_file():
+        parts += ["<h3>Coarse alignment error per episode</h3>",
+                  "<details><summary>coarse.csv</summary>"
+                  + _csv_table(directory / "coarse.csv") + "</details>"]
+    faults = _faults(directory / "summary.json")
+    if faults:
+        parts += ["<h3>IMU data screen</h3>", f"<p>{escape(faults)}</p>"]
+    parts += ["<h3>Figures</h3>"]
+    parts += [_figure(path) for path in _figures(directory, settings.get("starts", []))]
+    parts.append("</section>")
+    return "\n".join(parts)
+
+
+def _settings_table(settings: dict) -> str:
+    rows = [("paper", settings["paper"]), ("scenario", settings["scenario"]),
+            ("campaign seed", settings.get("seed")),
+            ("episodes", settings.get("episodes")),
+            ("filters", ", ".join(settings.get("filters", []))),
+            ("starting errors", ", ".join(settings.get("starts", []))),
+            ("NEES states", settings.get("nees_dof"))]
+    rows += [(f"experiment: {k}", v) for k, v in settings["experiment"].items()]
+    rows += [(f"version: {k}", v) for k, v in settings.get("versions", {}).items()]
+    rows += [("platform", settings.get("platform")), ("written (UTC)",
+                                                      settings.get("written_utc"))]
+    return ("<table class=\"kv\">" + "".join(
+        f"<tr><th>{escape(str(k))}</th><td>{escape(_text(v))}</td></tr>" for k, v in rows)
+        + "</table>")
+
+
+def _text(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, (list, tuple, dict)):
+        return json.dumps(value)
+    return str(value)
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
+def _results_summary(path: Path) -> str:
+    """Per (filter, start): episodes, diverged, |final error| E, N, U median [p95] and
+    heading convergence median [p90] (s), NEES mean (median over episodes), covariance
+    repairs, ms per epoch; over the episodes not diverged."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for row in rows:
+        groups.setdefault((row["filter"], row["start"]), []).append(row)
+    head = ["filter", "start", "episodes", "diverged", "|final E| (')", "|final N| (')",
+            "|final U| (')", "heading convergence (s)", "NEES mean", "covariance repairs",
+            "ms / epoch"]
+    body = []
+    for (name, start), group in groups.items():
+        diverged = np.array([r["diverged"] == "True" for r in group])
+        ok = [r for r, d in zip(group, diverged) if not d]
+        col = lambda key: np.array([_number(r[key]) for r in ok])  # noqa: E731
+
+        def stat(key: str, q: float, absolute: bool = True) -> str:
+            values = col(key)
+            values = np.abs(values) if absolute else values
+            values = values[np.isfinite(values)]
+            if not values.size:
+                return "-"
+            return f"{np.median(values):.4g} [{np.percentile(values, q):.4g}]"
+
+        nees = col("nees_mean")
+        nees = nees[np.isfinite(nees)]
+        cells = [name, start, str(len(group)), str(int(diverged.sum())),
+                 *(stat(f"final_{a}_arcmin", 95) for a in ("phi_E", "phi_N", "phi_U")),
+                 stat("heading_convergence_s", 90, absolute=False),
+                 f"{np.median(nees):.4g}" if nees.size else "-",
+                 str(int(sum(_number(r["covariance_repairs"]) for r in group))),
+                 f"{np.nanmean([_number(r['ms_per_epoch']) for r in group]):.3g}"]
+        body.append("<tr>" + "".join(
+            ("<td>" if i < 2 else '<td class="num">') + escape(c) + "</td>"
+            for i, c in enumerate(cells)) + "</tr>")
+    return ("<table class=\"results\"><tr>" + "".join(f"<th>{escape(h)}</th>" for h in head)
+            + "</tr>" + "".join(body) + "</table>")
+
+
+def _csv_table(path: Path) -> str:
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        return "<p>(empty)</p>"
+    return ("<table><tr>" + "".join(f"<th>{escape(h)}</th>" for h in rows[0]) + "</tr>"
+            + "".join("<tr>" + "".join(f"<td class=\"num\">{escape(c)}</td>" for c in row)
+                      + "</tr>" for row in rows[1:]) + "</table>")
+
+
+def _faults(path: Path) -> str:
+    """A sentence on the IMU screen's flags from summary.json ('' when none)."""
+    if not path.is_file():
+        return ""
+    try:
+        faults = json.loads(path.read_text()).get("imu_faults", {})
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"report {path}: not valid JSON ({exc})") from None
+    if not faults.get("flagged_episodes"):
+        return "No IMU data fault flagged."
+    kinds = ", ".join(f"{k} {n}" for k, n in sorted(faults.get("by_kind", {}).items()))
+    return (f"{faults['flagged_episodes']} of {faults['episodes']} episodes flagged "
+            f"({kinds}); repaired before the filters.")
+
+
+def _figures(directory: Path, starts: list[str]) -> list[Path]:
+    """Every PNG of the directory: the campaign figures per start in the order of
+    ``FIGURE_CAPTIONS``, then the others by name."""
+    pngs = sorted(directory.glob("*.png"))
+    first = [directory / f"{kind}_{start}.png" for start in starts for kind in FIGURE_CAPTIONS]
+    ordered = [p for p in first if p in pngs]
+    return ordered + [p for p in pngs if p not in ordered]
+
+
+def _figure(path: Path) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return (f'<figure><img src="data:image/png;base64,{data}" alt="{escape(path.name)}">'
+            f"<figcaption><b>{escape(path.name)}</b>: {escape(figure_caption(path.name))}"
+            "</figcaption></figure>")

@@ -1,0 +1,345 @@
+"""Campaign figures and ``aligngym report``: the figures of every paper's campaign, their
+statistics against independent oracles, the HTML page's contents, and the page in a
+headless browser."""
+import base64
+import json
+import shutil
+from html.parser import HTMLParser
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from models.units import arcmin
+from scenarios.campaign import run_campaign
+from scenarios.cli import main
+from scenarios.experiments import experiment
+from scenarios.figures import (error_bands, heading_convergence_cdfs, mean_nees_band,
+                               median_nees_band, nees_curves)
+from scenarios.report import format_tables, write_outputs
+
+CAMPAIGNS = {
+    "paper000": ({"fine_duration": 60.0, "starts": ("coarse",)}, ["rdghkf", "ekf"], 1),
+    "paper001": ({"fine_duration": 60.0}, ["lckf", "rakf"], 2),
+    "paper002": ({"fine_duration": 30.0}, ["ekf", "ukf"], 2),
+    "paper003": ({"fine_duration": 60.0}, ["kf", "makf"], 2),
+    "paper004": ({"fine_duration": 60.0, "rms_start": 90.0}, ["stukf", "ekf"], 2),
+}
+"""Each paper's campaign: settings, filters, episodes; short runs (the figures' contract,
+not the filters'); paper 000's episode costs seconds: one; paper 001 on a scenario file
+whose car starts at 80 s instead of 270 s (``early_figure8``)."""
+
+
+def early_figure8(directory):
+    """figure8-gps with the car starting at 80 s, as a scenario file in directory."""
+    from scenarios.config import DATA_DIR
+    text = (DATA_DIR / "figure8-gps.toml").read_text()
+    assert "start_time_s = 270.0" in text
+    path = directory / "figure8-early.toml"
+    path.write_text(text.replace("start_time_s = 270.0", "start_time_s = 80.0")
+                    .replace('name = "figure8-gps"', 'name = "figure8-early"'))
+    return str(path)
+HOSTILE = "<script>alert('x')</script> & \"quoted\""
+"""A command-line argument the page must show as text."""
+
+
+@pytest.fixture(scope="module")
+def campaigns(tmp_path_factory):
+    """Per paper: (out dir, result, files written, the state dimensions each experiment's
+    NEES was computed with)."""
+    import importlib
+    done = {}
+    scenario_file = early_figure8(tmp_path_factory.mktemp("scenario"))
+    for paper, (settings, filters, episodes) in CAMPAIGNS.items():
+        if paper == "paper001":
+            settings = {**settings, "scenario": scenario_file}
+        module = importlib.import_module(f"scenarios.{paper}")
+        seen = []
+        with pytest.MonkeyPatch.context() as mp:
+            original = module.nees
+            mp.setattr(module, "nees", lambda e, P, f=original: seen.append(e.shape[-1])
+                       or f(e, P))
+            result = run_campaign(experiment(paper, **settings), episodes=episodes, seed=1,
+                                  filters=filters, workers=1, progress=False)
+        out = tmp_path_factory.mktemp(paper)
+        written = write_outputs(result, out, None, command=["aligngym", "bench", paper,
+                                                             HOSTILE])
+        done[paper] = (out, result, written, seen)
+    return done
+
+
+def image_pixels(path):
+    from matplotlib.image import imread
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", path
+    return imread(path)[..., :3].mean(-1)        # grey levels in [0, 1]
+
+
+@pytest.mark.parametrize("paper", CAMPAIGNS)
+def test_every_campaign_writes_its_figures(campaigns, paper):
+    """Four campaign figures per start (and the experiment's own), valid PNGs with
+    drawn content: grey levels spread, and more than 2 % of the pixels not white."""
+    out, result, written, _ = campaigns[paper]
+    expected = {f"{kind}_{start}.png" for start in result.experiment.starts
+                for kind in ("fine_error", "final_error", "heading_convergence", "nees")}
+    pngs = {p.name for p in out.glob("*.png")}
+    assert expected <= pngs
+    assert pngs == {p.name for p in written if p.suffix == ".png"}
+    for name in pngs:
+        grey = image_pixels(out / name)
+        assert grey.shape[0] > 300 and grey.shape[1] > 600, name
+        assert grey.std() > 0.05 and np.mean(grey < 0.95) > 0.02, name
+
+
+@pytest.mark.parametrize("paper", CAMPAIGNS)
+def test_nees_dof_is_the_dimension_the_nees_compares(campaigns, paper):
+    """The chi-square band's degrees of freedom are the state count each run's NEES
+    was computed with (seen by wrapping the metric)."""
+    _, result, _, seen = campaigns[paper]
+    assert seen and set(seen) == {result.experiment.nees_dof()}
+
+
+def fake_run(name, error_arcmin, sigma_arcmin, diverged, heading_convergence=None,
+             start="s"):
+    B, K, _ = error_arcmin.shape
+    return SimpleNamespace(
+        filter=name, start=start, error_n=error_arcmin * arcmin,
+        diverged=np.asarray(diverged), nees=np.ones((B, K)),
+        heading_convergence=(np.zeros(B) if heading_convergence is None
+                             else np.asarray(heading_convergence, float)),
+        result=SimpleNamespace(t=100.0 + np.arange(K), sigma_n=sigma_arcmin * arcmin))
+
+
+def test_error_band_is_over_every_episode_not_diverged():
+    """101 episodes whose errors at each epoch are a shuffle of 0..100 (times the axis
+    number and the epoch), and one diverged episode at 1e6: the 5th, 50th and 95th
+    percentiles are 5, 50, 95 exactly (linear interpolation on 101 values), which one
+    left-out or one added episode would move; the mean 3 sigma is over the same 101."""
+    rng = np.random.default_rng(4)
+    K, values = 5, np.arange(101.0)
+    scale = (1.0 + np.arange(K))[:, None] * np.array([1.0, 2.0, -3.0])     # (K, 3)
+    good = np.stack([rng.permutation(values) for _ in range(K)], 1)[:, :, None] * scale
+    error = np.concatenate([good, np.full((1, K, 3), 1e6)])
+    sigma = np.concatenate([np.full((101, K, 3), 2.0), np.full((1, K, 3), 1e5)])
+    diverged = np.r_[np.zeros(101, bool), True]
+    order = rng.permutation(102)                    # the diverged one anywhere
+    result = SimpleNamespace(runs=[fake_run("f", error[order], sigma[order],
+                                            diverged[order])])
+    band, = error_bands(result)
+    assert band.episodes == 102 and band.diverged_count == 1
+    low, high = np.sort([5 * scale, 95 * scale], axis=0)   # the Up axis is negated
+    np.testing.assert_allclose(band.low_arcmin, low, rtol=1e-9)
+    np.testing.assert_allclose(band.high_arcmin, high, rtol=1e-9)
+    np.testing.assert_allclose(band.median_arcmin, 50 * scale, rtol=1e-9)
+    assert np.all((band.low_arcmin <= band.median_arcmin)
+                  & (band.median_arcmin <= band.high_arcmin))
+    np.testing.assert_allclose(band.sigma3_arcmin, 6.0, rtol=1e-12)
+    np.testing.assert_allclose(band.diverged_error_arcmin, np.full((1, K, 3), 1e6))
+    np.testing.assert_allclose(band.t, np.arange(K))
+
+
+def test_error_band_with_every_episode_diverged_is_empty_but_counted():
+    error = np.ones((3, 4, 3))
+    band, = error_bands(SimpleNamespace(runs=[fake_run("f", error, error, [True] * 3)]))
+    assert band.diverged_count == 3 and np.isnan(band.median_arcmin).all()
+    assert band.diverged_error_arcmin.shape == (3, 4, 3)
+
+
+def test_figures_draw_diverged_episodes_without_warnings(tmp_path):
+    """A filter with every episode diverged (its errors NaN after the event) and one with
+    one of four: the four figures are drawn, without a NaN warning."""
+    import warnings
+    from scenarios.figures import write_figures
+    rng = np.random.default_rng(2)
+    K = 50
+    error = rng.normal(0.0, 1.0, (4, K, 3)) / (1.0 + np.arange(K))[:, None]
+    lost = error.copy()
+    lost[:, 20:] = np.nan
+    runs = [fake_run("good", error, np.ones_like(error), [False, False, True, False]),
+            fake_run("lost", lost, np.ones_like(error), [True] * 4)]
+    result = SimpleNamespace(runs=runs, seeds=[0, 1, 2, 3], experiment=SimpleNamespace(
+        starts=("s",), rms_window=10.0, heading_threshold_arcmin=0.5, nees_dof=lambda: 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        paths = write_figures(result, tmp_path)
+    assert [p.name for p in paths] == ["fine_error_s.png", "final_error_s.png",
+                                       "heading_convergence_s.png", "nees_s.png"]
+    for path in paths:
+        assert image_pixels(path).std() > 0.05
+
+
+def test_heading_convergence_counts_converged_not_converged_and_diverged():
+    """Threshold 5': an episode ending at 7' has not converged (its time is the run's
+    end), a diverged one is not counted as converged whatever its error."""
+    final_heading = np.array([1.0, -4.0, 7.0, 0.5, 2.0])
+    error = np.zeros((5, 3, 3))
+    error[:, -1, 2] = final_heading
+    run = fake_run("f", error, np.ones_like(error), [False, False, False, False, True],
+                   heading_convergence=[40.0, 10.0, 2.0, 25.0, 1.0])
+    result = SimpleNamespace(runs=[run],
+                             experiment=SimpleNamespace(heading_threshold_arcmin=5.0))
+    cdf, = heading_convergence_cdfs(result)
+    np.testing.assert_array_equal(cdf.times, [10.0, 25.0, 40.0])
+    assert (cdf.episodes, cdf.diverged, cdf.not_converged, cdf.t_end) == (5, 1, 1, 2.0)
+
+
+def test_nees_curves_leave_diverged_episodes_out():
+    error = np.zeros((3, 4, 3))
+    run = fake_run("f", error, error + 1, [False, False, True])
+    run.nees = np.array([[9.0, 1.0, 2.0, np.nan], [9.0, 3.0, 6.0, np.nan],
+                         [9.0, 1e6, 1e6, 1e6]])
+    curve, = nees_curves(SimpleNamespace(runs=[run]))
+    np.testing.assert_allclose(curve.mean[:2], [2.0, 4.0])
+    np.testing.assert_allclose(curve.median[:2], [2.0, 4.0])
+    assert np.isnan(curve.mean[2]) and (curve.episodes, curve.diverged) == (2, 1)
+
+
+@pytest.mark.parametrize("dof, episodes", [(3, 7), (9, 10), (15, 3)])
+def test_nees_bands_cover_95_percent_of_consistent_campaigns(dof, episodes):
+    """Monte Carlo oracle: 40000 campaigns of chi-square(dof) NEES per episode; the mean
+    band holds 95 % of their means, the median band 95 % of their medians (odd episode
+    counts; at least 95 % and less than 99.5 % for even ones). A band built with dof
+    instead of episodes x dof would hold far more, one without the 1/B far less."""
+    rng = np.random.default_rng(11)
+    draws = rng.chisquare(dof, size=(40000, episodes))
+    low, high = mean_nees_band(dof, episodes)
+    inside = np.mean((draws.mean(1) >= low) & (draws.mean(1) <= high))
+    assert abs(inside - 0.95) < 0.006
+    low, high = median_nees_band(dof, episodes)
+    inside = np.mean((np.median(draws, 1) >= low) & (np.median(draws, 1) <= high))
+    if episodes % 2:
+        assert abs(inside - 0.95) < 0.006
+    else:
+        assert 0.945 < inside < 0.995
+
+
+class Page(HTMLParser):
+    """Images, links and <pre> texts of an HTML page."""
+
+    def __init__(self, text):
+        super().__init__(convert_charrefs=True)
+        self.images, self.refs, self.pre, self.text, self._in_pre = [], [], [], [], False
+        self.tags = []
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.tags.append(tag)
+        if tag == "img":
+            self.images.append(attrs.get("src", ""))
+        self.refs += [v for k, v in attrs.items() if k in ("src", "href") and v]
+        if tag == "pre":
+            self._in_pre = True
+            self.pre.append("")
+
+    def handle_endtag(self, tag):
+        if tag == "pre":
+            self._in_pre = False
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._in_pre:
+            self.pre[-1] += data
+
+
+@pytest.mark.parametrize("paper", CAMPAIGNS)
+def test_report_holds_every_figure_and_table(campaigns, paper):
+    out, result, _, _ = campaigns[paper]
+    assert main(["report", str(out)]) == 0
+    page = Page((out / "report.html").read_text(encoding="utf-8"))
+    pngs = sorted(out.glob("*.png"))
+    prefix = "data:image/png;base64,"
+    assert len(page.images) == len(pngs) and all(s.startswith(prefix) for s in page.images)
+    assert sorted(base64.b64decode(s[len(prefix):]) for s in page.images) == \
+        sorted(p.read_bytes() for p in pngs)
+    # Nothing to fetch: every reference is a data URI or an anchor on the page.
+    assert all(r.startswith(("data:", "#")) for r in page.refs), page.refs
+    assert "script" not in page.tags                 # the hostile argument is text
+    assert format_tables(result) + "\n" in page.pre
+    assert (out / "tables.txt").read_text() in page.pre
+    settings = json.loads((out / "settings.json").read_text())
+    assert settings["command"][-1] == HOSTILE and any(HOSTILE in p for p in page.pre)
+    assert settings["scenario_toml"] in page.pre
+    text = " ".join(page.text)
+    for run in result.runs:
+        assert run.filter in text
+    assert f"{settings['paper']} on {settings['scenario']}" in text
+
+
+def test_report_of_a_directory_of_campaigns(campaigns, tmp_path):
+    """bench paper004 --swing all writes one campaign per level under --out: one page,
+    a section each, every figure of both."""
+    for name, paper in (("mild", "paper004"), ("severe", "paper002")):
+        shutil.copytree(campaigns[paper][0], tmp_path / name)
+    assert main(["report", str(tmp_path)]) == 0
+    page = Page((tmp_path / "report.html").read_text(encoding="utf-8"))
+    assert len(page.images) == len(list(tmp_path.glob("*/*.png")))
+    assert "#campaign-mild" in page.refs and "#campaign-severe" in page.refs
+
+
+def test_report_bad_dir_is_a_one_line_error(tmp_path, capsys):
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "campaign.json").write_text("{}")
+    (tmp_path / "file.txt").write_text("x")
+    (tmp_path / "empty").mkdir()
+    cases = {tmp_path / "missing": "no such directory",
+             tmp_path / "file.txt": "no such directory",
+             tmp_path / "empty": "not a campaign directory",
+             tmp_path / "old": "without settings.json, results.csv, tables.txt"}
+    for path, message in cases.items():
+        assert main(["report", str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"report DIR {path}" in err[0] and message in err[0], err
+    assert not (tmp_path / "empty" / "report.html").exists()
+
+
+def test_bench_out_is_self_describing_and_reported(tmp_path, capsys):
+    out = tmp_path / "b"
+    args = ["bench", "paper002", "--episodes", "2", "--filters", "ekf", "--out", str(out),
+            "--workers", "1"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    settings = json.loads((out / "settings.json").read_text())
+    assert settings["command"] == ["aligngym", *args]
+    assert (settings["paper"], settings["scenario"], settings["seed"]) == \
+        ("paper002", "static-large-azimuth", 0)
+    assert settings["episodes"] == 2 and settings["filters"] == ["ekf"]
+    assert settings["versions"]["numpy"] == np.__version__
+    assert (out / "tables.txt").read_text() in printed
+    assert json.loads((out / "summary.json").read_text())["fine"].keys() == {"ekf"}
+    assert main(["report", str(out)]) == 0
+    assert (out / "report.html").stat().st_size > 10_000
+
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                 "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync"]
+
+
+@pytest.mark.skipif(not CHROMIUM.is_file(), reason="no /usr/bin/chromium (Debian package "
+                    "chromium; .ci/run installs it)")
+def test_report_renders_in_headless_chromium(campaigns):
+    """The page opens in a browser with no console error or page error, and every image
+    decodes (complete, natural width > 0)."""
+    from playwright.sync_api import sync_playwright
+
+    out = campaigns["paper003"][0]
+    assert main(["report", str(out)]) == 0
+    errors = []
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page()
+            page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}")
+                    if m.type in ("error", "warning") else None)
+            page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+            page.goto((out / "report.html").resolve().as_uri(), wait_until="load")
+            images = page.evaluate("() => Array.from(document.images).map("
+                                   "i => [i.complete, i.naturalWidth, i.alt])")
+        finally:
+            browser.close()
+    assert errors == []
+    assert len(images) == len(list(out.glob("*.png")))
+    broken = [alt for complete, width, alt in images if not (complete and width > 0)]
+    assert broken == []
