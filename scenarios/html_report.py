@@ -2,7 +2,7 @@
 
 The page holds the scenario and its TOML, the settings and the command line, the
 paper-shaped tables (``tables.txt``), a per-filter summary of the tidy table
-(``results.csv``), the coarse-alignment errors (``coarse.csv``), the IMU screen's flags
+(``results.csv``), the coarse-alignment errors (``coarse.csv``), the data faults flagged
 and every figure (PNG) of the directory, embedded as base64 data URIs: no external
 resource, so the file can be mailed or attached as it is. A directory of campaign
 directories (``bench paper004 --swing all --out DIR``) gives one page with a section
@@ -140,7 +140,7 @@ def _campaign_section(directory: Path, name: str) -> str:
                   + _csv_table(directory / "coarse.csv") + "</details>"]
     faults = _faults(directory / "summary.json")
     if faults:
-        parts += ["<h3>IMU data screen</h3>", f"<p>{escape(faults)}</p>"]
+        parts += ["<h3>Data faults flagged</h3>", f"<p>{escape(faults)}</p>"]
     parts += ["<h3>Figures</h3>"]
     parts += [_figure(path) for path in _figures(directory, settings.get("starts", []))]
     parts.append("</section>")
@@ -230,18 +230,19 @@ def _csv_table(path: Path) -> str:
 
 
 def _faults(path: Path) -> str:
-    """A sentence on the IMU screen's flags from summary.json ('' when none)."""
+    """A sentence on the data faults flagged, from summary.json ('' without one)."""
     if not path.is_file():
         return ""
     try:
-        faults = json.loads(path.read_text()).get("imu_faults", {})
+        faults = json.loads(path.read_text()).get("data_faults", {})
     except json.JSONDecodeError as exc:
         raise ConfigError(f"report {path}: not valid JSON ({exc})") from None
     if not faults.get("flagged_episodes"):
-        return "No IMU data fault flagged."
+        return "No data fault flagged."
     kinds = ", ".join(f"{k} {n}" for k, n in sorted(faults.get("by_kind", {}).items()))
     return (f"{faults['flagged_episodes']} of {faults['episodes']} episodes flagged "
-            f"({kinds}); repaired before the filters.")
+            f"({kinds}); IMU data are repaired before the filters, the other faults "
+            "are left to them.")
 
 
 def _figures(directory: Path, starts: list[str]) -> list[Path]:
