@@ -1,4 +1,8 @@
-"""The pipelines' check of IMU data before any filter sees it: missing samples (the
+"""The pipelines' checks of their data before any filter sees it: the IMU
+(``screen_imu``, below), the gimbal encoders against the commands (``screen_gimbal``),
+the GNSS fixes (``screen_gnss``) and the odometer against the IMU (``screen_odometer``).
+
+The IMU check: missing samples (the
 timestamps say so), non-finite samples, samples at a triad's rail (saturation) and
 single-sample spikes are detected, flagged with their time and kind, and repaired by a
 cubic spline through the good samples' rates, onto the run's uniform grid (what a
@@ -128,15 +132,16 @@ OUTLIER_MADS = 6.0
 this many robust standard deviations of the scenario's path residuals, both ways."""
 
 
-def screen_gimbal(t: np.ndarray, encoder: np.ndarray, expected: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def screen_gimbal(t: np.ndarray, encoder: np.ndarray, expected: np.ndarray,
+                  resolution: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Stalls of a gimbal: encoder readings and the angles the commands give (both
     (M+1, 2) rad at times t (M+1,) s), each counted from the first (the encoders'
-    constant offsets cancel). Returns the flags' kind (F,) ("gimbal_stall") and time
-    (F,) s: the first sample of each stretch in which some axis is more than
-    ``STALL_TOLERANCE`` off (the stall and its catch-up are one stretch)."""
+    constant offsets cancel; their quantisation, one count of resolution rad, adds to
+    the tolerance). Returns the flags' kind (F,) ("gimbal_stall") and time (F,) s: the
+    first sample of each stretch in which some axis is more than ``STALL_TOLERANCE``
+    off (the stall and its catch-up are one stretch)."""
     deviation = (encoder - encoder[0]) - (expected - expected[0])
-    stretches = _runs(np.any(np.abs(deviation) > STALL_TOLERANCE, axis=1))
+    stretches = _runs(np.any(np.abs(deviation) > STALL_TOLERANCE + resolution, axis=1))
     times = [float(t[first]) for first, _ in stretches]
     return np.array(["gimbal_stall"] * len(times), dtype=str), np.array(times, dtype=float)
 
@@ -181,8 +186,9 @@ SLIP_FLOOR = 0.5
 the IMU's forward velocity change is a slip above this and 12 robust sigmas of the run's
 (measured on the ring road: sigma 0.01 m/s, largest 0.07 m/s, 0.19 on the rough road;
 a 0.5 m burst over 0.3 s shows 1.7 m/s)."""
-SLIP_MERGE = 1.0
-"""s: odometer flags closer than this are one burst (its start and its end)."""
+SLIP_MERGE = 5.0
+"""s: odometer flags within this of the previous flagged window are one burst (its start
+and its end show as opposite jumps of the speed, with none between)."""
 
 
 def screen_odometer(dt: float, distance: np.ndarray, dv_forward: np.ndarray
@@ -190,7 +196,8 @@ def screen_odometer(dt: float, distance: np.ndarray, dv_forward: np.ndarray
     """Slip bursts of an odometer: its cumulative distance (M+1,) m at the IMU boundaries
     (every dt s from 0) against the IMU's velocity increments along the carrier's forward
     axis (M,) m/s. Two consecutive windows of ``SLIP_WINDOW`` give a speed change; the
-    IMU's increments between the windows' centres give the carrier's. Returns the flags'
+    IMU's increments between the windows' centres give the carrier's, plus gravity along
+    the forward axis (nearly constant: the run's median residual is taken off). Returns the flags'
     kind (F,) ("odometer_slip") and time (F,) s: the first window end off by more than
     ``SLIP_FLOOR`` (flags within ``SLIP_MERGE`` are one burst)."""
     n = max(2, 2 * int(round(SLIP_WINDOW / dt / 2)))      # even: the centres on boundaries
@@ -201,10 +208,13 @@ def screen_odometer(dt: float, distance: np.ndarray, dv_forward: np.ndarray
     cumulative = np.r_[0.0, np.cumsum(dv_forward)]
     j = np.arange(2 * n, distance.size)
     residual = change - (cumulative[j - n // 2] - cumulative[j - 3 * n // 2])
-    sigma = 1.4826 * np.median(np.abs(residual - np.median(residual)))
+    residual -= np.median(residual)          # gravity along a tilted forward axis
+    sigma = 1.4826 * np.median(np.abs(residual))
     slipped = np.abs(residual) > max(SLIP_FLOOR, 12.0 * sigma)
     times: list[float] = []
-    for first, _ in _runs(slipped):
-        if not times or j[first] * dt - times[-1] > SLIP_MERGE:
+    last_end = -np.inf
+    for first, last in _runs(slipped):
+        if j[first] * dt - last_end > SLIP_MERGE:
             times.append(float(j[first] * dt))
+        last_end = j[last] * dt
     return np.array(["odometer_slip"] * len(times), dtype=str), np.array(times, dtype=float)

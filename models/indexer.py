@@ -97,23 +97,6 @@ class IndexerSpec:
         times, angles = self.breakpoints(float(t.max()) if duration is None else duration)
         return np.interp(t, times, angles)
 
-    def linear_response(self, t: np.ndarray) -> np.ndarray:
-        """The closed servo loop's linear response (rad) to the command at times t (N,) s
-        (theta'' = w_n^2 (command - theta) - 2 zeta w_n theta', from rest at the first
-        command angle): the motion a pipeline expects from the commands alone, without
-        the hull's excitation of the rotor. Exact for the piecewise-linear command on a
-        grid of servo steps, interpolated linearly to t."""
-        from scipy.signal import lsim
-        t = np.asarray(t, dtype=float)
-        grid = np.arange(int(math.ceil(float(t.max(initial=0.0)) / self.servo_step)) + 2
-                         ) * self.servo_step
-        command = self.command(grid)
-        w_n = 2 * math.pi * self.natural_frequency
-        system = (np.array([[0.0, 1.0], [-w_n ** 2, -2 * self.damping_ratio * w_n]]),
-                  np.array([[0.0], [w_n ** 2]]), np.array([[1.0, 0.0]]), np.zeros((1, 1)))
-        _, angle, _ = lsim(system, command, grid, X0=[command[0], 0.0])
-        return np.interp(t, grid, angle)
-
 
 def servo_mjcf(spec: IndexerSpec) -> str:
     """The servo's MJCF: the rotor on the indexer hinge, a position actuator (ctrl 0:

@@ -64,7 +64,8 @@ body z, inner about x; C_s_b = Rz(outer) Rx(inner))."""
 
 STALL_RAMP = 0.2
 """s: a stalled gimbal decelerates to rest, and later re-accelerates, over this time
-(a septic smoothstep, so the angles and their first four derivatives stay continuous)."""
+(a septic smoothstep; with the catch-up, built from its derivative, the angles keep
+three continuous derivatives)."""
 STALL_CATCH_UP = 2.0
 """After a stall of duration d the gimbal catches up with its schedule over
 STALL_CATCH_UP x d (s), at up to 1 + 2.19 / STALL_CATCH_UP times its scheduled rate."""
@@ -159,12 +160,15 @@ class GimbalRates:
     def expected_gimbal_angles(self, t: np.ndarray) -> np.ndarray:
         """The angles (N, 2) rad a pipeline expects the encoders to read (less their
         offsets) at times t (N,) s, from the commands alone: the constant rates, or the
-        indexer servo's linear closed-loop response to its command (the inner axis at
-        rest). A stalled gimbal falls behind them (``estimators.screen.screen_gimbal``)."""
+        indexer servo's response to its command on a fixed base (MuJoCo's servo without
+        the hull's excitation, once per process; the inner axis at rest). A stalled gimbal falls behind them (``estimators.screen.screen_gimbal``)."""
         t = np.asarray(t, dtype=float)
         if self.indexer is None:
             return self.gimbal_angles(t)
-        return np.stack([self.indexer.linear_response(t), np.zeros(t.size)], -1)
+        from models.indexer import cached_indexer
+        horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
+        return np.stack([cached_indexer(self.indexer, horizon).state(t)[0],
+                         np.zeros(t.size)], -1)
 
 
 def gimbal_C_s_b(angles: np.ndarray) -> np.ndarray:

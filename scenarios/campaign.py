@@ -122,7 +122,8 @@ def simulate_screened(config: ScenarioConfig, seed: int):
     kinds, times = [screened.kind], [screened.start]
     if config.motion.has_gimbal:
         t = np.arange(config.imu_samples + 1) * config.imu_interval
-        flags = screen_gimbal(t, episode.gimbal_encoder, config.motion.expected_gimbal_angles(t))
+        flags = screen_gimbal(t, episode.gimbal_encoder, config.motion.expected_gimbal_angles(t),
+                              config.encoder.resolution)
         kinds.append(flags[0])
         times.append(flags[1])
     if "odo_distance" in episode.extra:

@@ -357,6 +357,9 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
     filter_table = tuple(sorted(section("filter", False).items()))
+    if "gimbal_stalls" in motion:
+        raise ConfigError("motion.gimbal_stalls: stalls are faults; write them in [faults] "
+                          "(gimbal_stalls = [[start_s, duration_s]])")
     faults = _dataclass_from(ImuFaults, section("faults", False), "faults")
     if faults.gimbal_stalls:
         if not getattr(motion_obj, "has_gimbal", False):

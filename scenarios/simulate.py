@@ -141,12 +141,16 @@ def _faults(config: ScenarioConfig, imu_t, dtheta, dv, extra: dict):
                                                      *imu_rails(config))
         for key in record:
             record[key] += list(imu_record[key])
-    rows = [("gimbal_stall", start, start + duration)
-            for start, duration in faults.gimbal_stalls]
+    from models.world import STALL_CATCH_UP
+    rows = [("gimbal_stall", start, start + (1.0 + STALL_CATCH_UP) * duration)
+            for start, duration in faults.gimbal_stalls]    # to the end of the catch-up
     if config.gps is not None:
+        gps = config.gps
         rows += [("gnss_outage", start, min(end, config.duration))
-                 for start, end in config.gps.outages if start < config.duration]
-        rows += [("gnss_outlier", when, when) for when, *_ in config.gps.outliers]
+                 for start, end in gps.outages if start < config.duration]
+        for when, *_ in gps.outliers:               # the stamp of the fix it is put on
+            stamp = round((when - gps.latency) * gps.rate) / gps.rate + gps.latency
+            rows.append(("gnss_outlier", stamp, stamp))
     if config.odometer is not None:
         rows += [("odometer_slip", start, start + duration)
                  for start, duration, _ in config.odometer.slips]
