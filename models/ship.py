@@ -140,6 +140,30 @@ def hull_mass_properties(hull_size: tuple[float, float, float]
     return mass, tuple(i * mass / mass0 * r for i, r in zip(inertia0, ratio))
 
 
+def _vertices(points) -> str:
+    """MJCF vertex list of (N, 3) points, m."""
+    return " ".join(f"{v:.4g}" for p in points for v in p)
+
+
+def hull_vertices(beam: float, length: float, depth: float, top: float
+                  ) -> tuple[list, list]:
+    """Visual hull and deck outlines (half beam, half length, depth, m; R, F, U from the
+    sway centre, the deck at height top, m): the hull's convex outline with a raked bow
+    and a narrower keel, and the deck's outline 0.3 % of the length thick on it."""
+    bow, stern = length, -length
+    hull, deck = [], []
+    for y, half, keel in ((stern, 0.85, 0.7), (-0.5 * length, 1.0, 0.75), (0.3 * length, 1.0, 0.7),
+                          (0.7 * length, 0.7, 0.45)):
+        hull += [(sx * half * beam, y, top) for sx in (-1, 1)]
+        hull += [(sx * keel * half * beam, y, top - depth * (0.6 if y == stern else 1.0))
+                 for sx in (-1, 1)]
+        deck += [(sx * 0.97 * half * beam, y, top + z) for sx in (-1, 1)
+                 for z in (0.0, 0.006 * length)]
+    hull += [(0.0, bow, top + 0.05 * depth), (0.0, 0.85 * length, top - 0.8 * depth)]
+    deck += [(0.0, 0.98 * bow, top + z) for z in (0.0, 0.006 * length)]
+    return hull, deck
+
+
 def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
               antenna_b: tuple[float, float, float] | None = None,
               hull_size: tuple[float, float, float] = REFERENCE_HULL[0],
@@ -154,12 +178,26 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
     ``indexer`` on a floating hull the outer gimbal axis is the indexer: a rotor of the
     spec's inertia driven by a position actuator "indexer" (kp = I w_n^2, kv = 2 zeta w_n
     I; ctrl: the commanded angle, rad), the inner axis nearly massless.
+
+    The scene (visual geoms only, massless and without contacts): the hull with its deck,
+    bridge, funnel and mast; a pedestal under the gimbal; the gimbal's outer frame (a
+    ring through the inner axis' bearings, orange, geoms "gimbal_outer_frame*"), its inner
+    frame (green, "gimbal_inner_frame*"), the IMU case ("imu_case") with its sensor axes
+    x, y, z drawn red, green, blue ("imu_axis_x/y/z"), drawn at a visible size (the
+    gimbal's drawing is at least 3 % of the hull's length); sky and sea.
     """
     x, y, z = lever_arm_b
     ax, ay, az = lever_arm_b if antenna_b is None else antenna_b
     beam, length, depth = (0.5 * v for v in hull_size)
-    bridge = (min(7.0, 0.4 * beam), min(6.0, 0.15 * length), min(5.0, 0.6 * depth))
+    top = 0.8 * depth                                  # the deck above the sway centre, m
+    hull, deck = hull_vertices(beam, length, 2.0 * depth, top)
     scale = min(1.0, beam / 9.0)
+    g = max(0.6 * scale, 0.03 * hull_size[1])          # the gimbal's drawn radius, m
+    bridge = (min(7.0, 0.6 * beam), min(6.0, 0.1 * length), min(5.0, 0.6 * depth))
+    # The masses the hull's model has always had (the prescribed hull's play no part in
+    # its motion; kept so that its rounding stays bit for bit), drawn in group 3 (hidden).
+    mass_box = (min(7.0, 0.4 * beam), min(6.0, 0.15 * length), min(5.0, 0.6 * depth))
+    by = -0.45 * length
     inertial = actuator = ""
     outer_mass = inner_mass = ""
     if floating:
@@ -176,37 +214,101 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
             actuator = (f'<actuator><position name="indexer" joint="gimbal_outer" '
                         f'kp="{total * w_n ** 2!r}" '
                         f'kv="{2 * indexer.damping_ratio * w_n * total!r}"/></actuator>')
+    visual = 'contype="0" conaffinity="0" mass="0"'
+    foot = (float(np.clip(x, -0.5 * beam, 0.5 * beam)), y, top)   # on the deck
+    base = (x, y, z - 1.3 * g)                                     # under the gimbal
+    pedestal = ""
+    if np.linalg.norm(np.subtract(base, foot)) > 0.05 * g:
+        pedestal = (f'<geom name="pedestal" type="cylinder" fromto="{_vertices([foot, base])}" '
+                    f'size="{0.15 * g:.4g}" rgba=".5 .5 .55 1" group="1" {visual}/>')
+
+    def ring(name: str, radius: float, axis: str, rgba: str) -> str:
+        """A ring of 16 capsules of the given radius about the body's axis ("x" or "z")."""
+        parts = []
+        for k in range(16):
+            a0, a1 = 2 * np.pi * k / 16, 2 * np.pi * (k + 1) / 16
+            p0 = (radius * np.cos(a0), radius * np.sin(a0))
+            p1 = (radius * np.cos(a1), radius * np.sin(a1))
+            if axis == "x":      # the ring in the y-z plane
+                ends = (0.0, *p0, 0.0, *p1)
+            else:                # the ring in the x-y plane
+                ends = (*p0, 0.0, *p1, 0.0)
+            parts.append(f'<geom name="{name}{k}" type="capsule" size="{0.06 * radius:.4g}" '
+                         f'fromto="{_vertices([ends[:3], ends[3:]])}" rgba="{rgba}" '
+                         f'group="1" {visual}/>')
+        return "\n".join(parts)
+
+    axes = "\n".join(
+        f'<geom name="imu_axis_{n}" type="capsule" size="{0.03 * g:.4g}" '
+        f'fromto="0 0 0 {_vertices([tuple(0.9 * g * e for e in d)])}" rgba="{c}" group="1" '
+        f'{visual}/>'
+        for n, d, c in (("x", (1, 0, 0), "1 .1 .1 1"), ("y", (0, 1, 0), ".1 .9 .1 1"),
+                        ("z", (0, 0, 1), ".2 .3 1 1")))
     return f"""
 <mujoco model="ship-sway-rotary">
   <option timestep="0.005" integrator="implicitfast"/>
-  <visual><global offwidth="640" offheight="480"/></visual>
+  <visual><global offwidth="1280" offheight="960"/><quality shadowsize="4096"/>
+    <map znear="0.01" zfar="50000"/><headlight ambient=".35 .35 .35" diffuse=".5 .5 .5"/></visual>
   <asset>
-    <texture name="sea" type="2d" builtin="checker" rgb1=".10 .25 .45" rgb2=".12 .30 .52"
-             width="256" height="256"/>
-    <material name="sea" texture="sea" texrepeat="40 40"/>
+    <texture name="sky" type="skybox" builtin="gradient" rgb1=".55 .72 .9" rgb2=".95 .97 1"
+             width="512" height="512"/>
+    <texture name="sea" type="2d" builtin="flat" rgb1=".07 .24 .40" width="64" height="64"/>
+    <material name="sea" texture="sea" reflectance="0" specular=".5" shininess=".8"/>
+    <material name="hull" rgba=".22 .27 .36 1" specular=".3"/>
+    <material name="deck" rgba=".62 .58 .50 1"/>
+    <material name="white" rgba=".93 .93 .95 1" specular=".4"/>
+    <mesh name="hull" vertex="{_vertices(hull)}"/>
+    <mesh name="deck" vertex="{_vertices(deck)}"/>
   </asset>
   <worldbody>
-    <light pos="0 0 200" dir="0 0 -1" directional="true"/>
-    <geom name="sea" type="plane" size="400 400 1" material="sea" contype="0" conaffinity="0"/>
+    <light pos="0 0 2000" dir="-.3 .2 -1" directional="true" diffuse=".7 .7 .7"
+           castshadow="false"/>
+    <geom name="sea" type="plane" size="3000 3000 1" material="sea" contype="0" conaffinity="0"/>
     <body name="carrier">
       <freejoint name="hull"/>
       {inertial}
-      <geom name="hull" type="box" size="{beam:g} {length:g} {depth:g}" pos="0 0 {-depth / 2:g}"
-            rgba=".55 .55 .6 1" contype="0" conaffinity="0" mass="5e6"/>
+      <geom name="hull_mass" type="box" size="{beam:g} {length:g} {depth:g}" pos="0 0 {-depth / 2:g}"
+            contype="0" conaffinity="0" mass="5e6" group="3"/>
+      <geom name="hull" type="mesh" mesh="hull" material="hull" {visual}/>
+      <geom name="deck" type="mesh" mesh="deck" material="deck" {visual}/>
+      <geom name="bridge_mass" type="box" size="{mass_box[0]:g} {mass_box[1]:g} {mass_box[2]:g}"
+            pos="{x:g} {y:g} {z / 2:g}" contype="0" conaffinity="0" mass="1e4" group="3"/>
       <geom name="bridge" type="box" size="{bridge[0]:g} {bridge[1]:g} {bridge[2]:g}"
-            pos="{x:g} {y:g} {z / 2:g}" rgba=".85 .85 .9 1" contype="0" conaffinity="0"
-            mass="1e4"/>
+            pos="0 {by:g} {top + bridge[2]:g}" material="white" {visual}/>
+      <geom name="bridge_windows" type="box" size="{0.9 * bridge[0]:g} {0.02 * bridge[1]:g} {0.12 * bridge[2]:g}"
+            pos="0 {by + bridge[1]:g} {top + 1.6 * bridge[2]:g}" rgba=".1 .12 .16 1" group="1" {visual}/>
+      <geom name="bridge_top" type="box" size="{0.7 * bridge[0]:g} {0.8 * bridge[1]:g} {0.35 * bridge[2]:g}"
+            pos="0 {by:g} {top + 2.35 * bridge[2]:g}" material="white" group="1" {visual}/>
+      <geom name="funnel" type="cylinder" size="{0.25 * bridge[0]:g} {0.6 * bridge[2]:g}"
+            pos="0 {by - 1.6 * bridge[1]:g} {top + 1.6 * bridge[2]:g}" rgba=".75 .2 .15 1" group="1" {visual}/>
+      <geom name="mast" type="capsule" size="{0.03 * bridge[0]:g}"
+            fromto="0 {by + 0.3 * bridge[1]:g} {top + 2.7 * bridge[2]:g} 0 {by + 0.3 * bridge[1]:g} {top + 4.2 * bridge[2]:g}"
+            rgba=".85 .85 .85 1" group="1" {visual}/>
+      {pedestal}
+      <geom name="antenna" type="cylinder" size="{0.15 * g:.4g} {0.03 * g:.4g}"
+            pos="{ax:g} {ay:g} {az:g}" rgba=".95 .95 .95 1" group="1" {visual}/>
       <site name="antenna" pos="{ax:g} {ay:g} {az:g}" size="{0.1 * scale:g}"/>
       <body name="gimbal_outer" pos="{x:g} {y:g} {z:g}">
         <joint name="gimbal_outer" type="hinge" axis="0 0 1"/>
         {outer_mass}
         <geom type="cylinder" size="{0.6 * scale:g} {0.05 * scale:g}" rgba=".9 .5 .1 1"
-              contype="0" conaffinity="0" mass="20"/>
+              contype="0" conaffinity="0" mass="20" group="3"/>
+        <geom name="gimbal_outer_base" type="cylinder" size="{0.35 * g:.4g} {0.05 * g:.4g}"
+              pos="0 0 {-1.25 * g:.4g}" rgba=".95 .55 .1 1" group="1" {visual}/>
+        <geom name="gimbal_outer_stem" type="capsule" size="{0.05 * g:.4g}"
+              fromto="0 0 {-1.25 * g:.4g} 0 0 {-g:.4g}" rgba=".95 .55 .1 1" group="1" {visual}/>
+        {ring("gimbal_outer_frame", g, "x", ".95 .55 .1 1")}
         <body name="gimbal_inner">
           <joint name="gimbal_inner" type="hinge" axis="1 0 0"/>
           {inner_mass}
           <geom type="box" size="{0.25 * scale:g} {0.25 * scale:g} {0.25 * scale:g}"
-                rgba=".2 .8 .3 1" contype="0" conaffinity="0" mass="10"/>
+                rgba=".2 .8 .3 1" contype="0" conaffinity="0" mass="10" group="3"/>
+          {ring("gimbal_inner_frame", 0.75 * g, "z", ".2 .75 .3 1")}
+          <geom name="gimbal_inner_axle" type="capsule" size="{0.04 * g:.4g}"
+                fromto="{-g:.4g} 0 0 {g:.4g} 0 0" rgba=".6 .6 .6 1" group="1" {visual}/>
+          <geom name="imu_case" type="box" size="{0.3 * g:.4g} {0.3 * g:.4g} {0.22 * g:.4g}"
+                rgba=".25 .25 .28 1" group="1" {visual}/>
+          {axes}
           <site name="imu" size="0.05"/>
         </body>
       </body>

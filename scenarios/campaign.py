@@ -53,7 +53,7 @@ class PreparedEpisode(ABC):
     h: float
     fault_kind: np.ndarray = field(default_factory=lambda: np.array([], str), kw_only=True)
     fault_time: np.ndarray = field(default_factory=lambda: np.zeros(0), kw_only=True)
-    """The IMU data faults the pipeline's screen flagged (``estimators.screen``): kind
+    """The data faults the pipeline's screen flagged (``estimators.screen``): kind
     (F,) str and the time (F,) s of each one's first sample."""
 
     def arrays(self) -> dict[str, np.ndarray]:
