@@ -159,7 +159,7 @@ def hull_vertices(beam: float, length: float, depth: float, top: float
                  for sx in (-1, 1)]
         deck += [(sx * 0.97 * half * beam, y, top + z) for sx in (-1, 1)
                  for z in (0.0, 0.006 * length)]
-    hull += [(0.0, bow, top + 0.05 * depth), (0.0, 0.85 * length, top - 0.8 * depth)]
+    hull += [(0.0, bow, top), (0.0, 0.85 * length, top - 0.8 * depth)]
     deck += [(0.0, 0.98 * bow, top + z) for z in (0.0, 0.006 * length)]
     return hull, deck
 
@@ -217,6 +217,11 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
     visual = 'contype="0" conaffinity="0" mass="0"'
     foot = (float(np.clip(x, -0.5 * beam, 0.5 * beam)), y, top)   # on the deck
     base = (x, y, z - 1.3 * g)                                     # under the gimbal
+    antenna_mast = ""
+    if az > top + 0.05 * g:
+        antenna_mast = (f'<geom name="antenna_mast" type="capsule" size="{0.03 * g:.4g}" '
+                        f'fromto="{ax:g} {ay:g} {top:g} {ax:g} {ay:g} {az:g}" '
+                        f'rgba=".8 .8 .8 1" group="1" {visual}/>')
     pedestal = ""
     if np.linalg.norm(np.subtract(base, foot)) > 0.05 * g:
         pedestal = (f'<geom name="pedestal" type="cylinder" fromto="{_vertices([foot, base])}" '
@@ -239,14 +244,15 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
         return "\n".join(parts)
 
     axes = "\n".join(
-        f'<geom name="imu_axis_{n}" type="capsule" size="{0.03 * g:.4g}" '
-        f'fromto="0 0 0 {_vertices([tuple(0.9 * g * e for e in d)])}" rgba="{c}" group="1" '
+        f'<geom name="imu_axis_{n}" type="capsule" size="{0.045 * g:.4g}" '
+        f'fromto="0 0 0 {_vertices([tuple(1.1 * g * e for e in d)])}" rgba="{c}" group="1" '
         f'{visual}/>'
         for n, d, c in (("x", (1, 0, 0), "1 .1 .1 1"), ("y", (0, 1, 0), ".1 .9 .1 1"),
                         ("z", (0, 0, 1), ".2 .3 1 1")))
     return f"""
 <mujoco model="ship-sway-rotary">
   <option timestep="0.005" integrator="implicitfast"/>
+  <statistic extent="{2.0 * max(hull_size):g}" center="0 0 0"/>
   <visual><global offwidth="1280" offheight="960"/><quality shadowsize="4096"/>
     <map znear="0.01" zfar="50000"/><headlight ambient=".35 .35 .35" diffuse=".5 .5 .5"/></visual>
   <asset>
@@ -285,6 +291,7 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
             fromto="0 {by + 0.3 * bridge[1]:g} {top + 2.7 * bridge[2]:g} 0 {by + 0.3 * bridge[1]:g} {top + 4.2 * bridge[2]:g}"
             rgba=".85 .85 .85 1" group="1" {visual}/>
       {pedestal}
+      {antenna_mast}
       <geom name="antenna" type="cylinder" size="{0.15 * g:.4g} {0.03 * g:.4g}"
             pos="{ax:g} {ay:g} {az:g}" rgba=".95 .95 .95 1" group="1" {visual}/>
       <site name="antenna" pos="{ax:g} {ay:g} {az:g}" size="{0.1 * scale:g}"/>

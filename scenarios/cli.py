@@ -178,6 +178,24 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                        "'ray://HOST:10001'; default: start a local instance)")
     rep_help = ("write DIR/report.html: one self-contained page of a campaign directory "
                 "(settings, tables, results, figures)")
+    ren = sub.add_parser("render", help="render an episode of a scenario as a video (MP4): "
+                         "the carrier, its IMU's close-up, and an estimator's errors")
+    ren.add_argument("scenario", help="scenario name or .toml file")
+    ren.add_argument("--start", type=_float_option("--start", allow_zero=True), default=0.0,
+                     metavar="S", help="time of the episode the video starts at, s (default: 0)")
+    ren.add_argument("--duration", type=_float_option("--duration"), default=30.0, metavar="S",
+                     help="seconds of the episode to show (default: 30)")
+    ren.add_argument("--seed", type=_seed, default=0, metavar="N",
+                     help="episode seed (>= 0; default: 0)")
+    ren.add_argument("--estimator", metavar="NAME",
+                     help="a filter whose attitude errors the overlay shows (scenarios with "
+                          "an alignment pipeline)")
+    ren.add_argument("--fps", type=_float_option("--fps"), default=20.0, metavar="HZ",
+                     help="frames per second of the episode's time (default: 20)")
+    ren.add_argument("--size", default="480x640", metavar="HxW",
+                     help="frame height x width, pixels (default: 480x640)")
+    ren.add_argument("--out", required=True, metavar="FILE.mp4", help="the video file")
+
     rep = sub.add_parser("report", help=rep_help, description=rep_help)
     rep.add_argument("dir", metavar="DIR", help="a bench --out directory (or a directory of "
                      "them, as bench paper004 --swing all writes)")
@@ -331,6 +349,24 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
+def _cmd_render(args: argparse.Namespace) -> int:
+    from scenarios.config import ConfigError, load_scenario
+    from scenarios.render import render_video
+
+    try:
+        size = tuple(int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        size = ()
+    if len(size) != 2:
+        raise ConfigError(f"--size must be HxW in pixels, e.g. 480x640, got {args.size!r}")
+    config = load_scenario(args.scenario).with_options(duration=args.start + args.duration)
+    done = render_video(config, args.out, seed=args.seed, estimator=args.estimator,
+                        fps=args.fps, size=size, start=args.start)
+    print(f"wrote {done['path']}: {done['frames']} frames, {done['seconds']:.1f} s "
+          f"({done['seconds_per_frame'] * 1e3:.0f} ms per frame)")
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from scenarios.html_report import write_report
 
@@ -370,6 +406,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_regress(args)
         if args.command == "report":
             return _cmd_report(args)
+        if args.command == "render":
+            return _cmd_render(args)
         return _cmd_fidelity(args)
     except ConfigError as exc:
         print(f"aligngym: error: {exc}", file=sys.stderr)

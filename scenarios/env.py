@@ -32,13 +32,11 @@ from gymnasium import spaces
 from estimators.filters import UnknownFilter, filter_entry, make_filter
 from estimators.alignment import AlignmentRun
 from estimators.metrics import misalignment
-from models.attitude import dcm_to_quat
 from models.units import arcmin
 from scenarios.config import ConfigError
 from scenarios import campaign
 from scenarios.campaign import PreparedEpisode
 from scenarios.experiments import experiment_for
-from scenarios.simulate import episode_rngs, make_world
 
 SHARED_EPISODES = 16
 """Prepared episodes kept per process across env instances (vectorised envs and repeated
@@ -104,8 +102,7 @@ class AlignmentEnv(gym.Env):
         self._cache: OrderedDict[int, PreparedEpisode] = OrderedDict()
         self._cache_size = cache_episodes
         self._render_size = render_size
-        self._renderer = None
-        self._world = None
+        self._scene = None
         self._run: AlignmentRun | None = None
         self._over = False
         self._frames: list[np.ndarray] = []
@@ -160,7 +157,6 @@ class AlignmentEnv(gym.Env):
         self._observed = self.experiment.observed_states(self._run.model.layout)
         self._episode_seed = episode_seed
         self._over = False
-        self._world = None
         self._frames = []
         if self.render_mode == "rgb_array" and self.video_path:
             self._frames.append(self.render())
@@ -240,57 +236,36 @@ class AlignmentEnv(gym.Env):
         return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(
             np.float32)
 
+    @property
+    def alignment_start_s(self) -> float:
+        """Scenario time (s) of the fine alignment's first epoch in this episode."""
+        if self._run is None:
+            raise RuntimeError("alignment_start_s before reset()")
+        t = getattr(self._episode, "t", None)
+        return float(t[0] if t is not None else self._run.t[0])
+
     # --- rendering ----------------------------------------------------------------------
     def render(self):
+        """The scene at the current epoch (``scenarios.render``: the carrier followed by
+        the camera, the IMU's close-up, time, attitude and the estimator's errors), or
+        None without render_mode "rgb_array"."""
         if self.render_mode != "rgb_array":
             return None
-        import mujoco
+        from scenarios.render import SceneRenderer
 
-        if self._world is None:
-            seed = getattr(self, "_episode_seed", 0)
-            rng = episode_rngs(seed)["motion"]
-            if self.config.world == "ship-waves":
-                from models.waves import WaveShipWorld
-                self._world = WaveShipWorld(self.config.motion, rng)
-            elif self.config.world == "car":
-                from models.car import CarWorld
-                motion = self.config.motion
-                self._world = CarWorld(motion.car_params(), motion.make_track(),
-                                       motion.profile())
-            else:
-                self._world = make_world(self.config, rng)
-        world = self._world
-        if self._renderer is None:
-            height, width = self._render_size
-            self._renderer = mujoco.Renderer(world.model, height, width)
-            self._camera = mujoco.MjvCamera()
-            hull = getattr(self.config.motion, "hull_size", None)
-            distance = (6.0 if self.config.world == "static-platform"
-                        else 160.0 if hull is None else 2.5 * max(hull))
-            self._camera.distance, self._camera.elevation = distance, -25.0
-            self._camera.azimuth = 120.0
-        k = 0 if self._run is None else self._run.k
-        if hasattr(world, "joint_state"):  # prescribed motion: MuJoCo at time t
-            qpos, qvel, _ = world.joint_state(np.array([float(self._run.t[k]) if self._run
-                                                        else 0.0]))
-            world.data.qpos[:], world.data.qvel[:] = qpos[0], qvel[0]
-        elif hasattr(self, "_episode"):  # dynamic world: posed from the episode's truth
-            C_s_b = self._episode.C_s_b[k]
-            world.data.qpos[3:7] = dcm_to_quat(self._episode.C_b_n_true[k])
-            if hasattr(world, "_gimbal_qpos"):
-                world.data.qpos[world._gimbal_qpos] = [
-                    np.arctan2(-C_s_b[0, 1], C_s_b[1, 1]), np.arctan2(C_s_b[2, 1], C_s_b[2, 2])]
-            if hasattr(self._episode, "true_lat"):   # a vehicle: where it is on the plane
-                from models.earth import TangentPlane
-                plane = TangentPlane(self.config.latitude, self.config.longitude,
-                                     self.config.height)
-                e = self._episode
-                world.data.qpos[0:2] = plane.from_geodetic(e.true_lat[k], e.true_lon[k],
-                                                           e.true_h[k])[:2]
-        mujoco.mj_forward(world.model, world.data)
-        self._camera.lookat[:] = world.data.xpos[world.model.body("carrier").id]
-        self._renderer.update_scene(world.data, self._camera)
-        return self._renderer.render().copy()
+        seed = getattr(self, "_episode_seed", 0)
+        if self._scene is None or self._scene.seed != seed:    # the episode's own motion
+            self.close()
+            self._scene = SceneRenderer(self.config, seed=seed, size=self._render_size)
+        lines = []
+        t = 0.0
+        if self._run is not None:
+            run, k = self._run, self._run.k
+            t = self.alignment_start_s + float(run.t[k] - run.t[0])
+            error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k]) / arcmin
+            lines = [f"{self.estimator}: attitude error E {error[0]:+8.2f}'  "
+                     f"N {error[1]:+8.2f}'  U {error[2]:+8.2f}'"]
+        return self._scene.frame(min(t, self._scene.duration), lines)
 
     def _write_video(self) -> None:
         import imageio.v2 as imageio
@@ -301,14 +276,13 @@ class AlignmentEnv(gym.Env):
         self._frames = []
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        if self._scene is not None:
+            self._scene.close()
+            self._scene = None
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        state["_renderer"] = None
-        state["_world"] = None
+        state["_scene"] = None
         return state
 
 

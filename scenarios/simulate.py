@@ -82,6 +82,20 @@ def make_world(config: ScenarioConfig, rng: np.random.Generator) -> PrescribedWo
     return ShipWorld(episode_motion(config, rng))
 
 
+def make_dynamic_world(config: ScenarioConfig, rngs: dict[str, np.random.Generator]):
+    """The scenario's dynamic MuJoCo world (the car with its road, or the wave-driven
+    ship with its sea), drawn from the episode's random streams (``episode_rngs``)."""
+    motion = config.motion
+    if config.world == "car":
+        from models.car import CarWorld
+        return CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
+                        roughness_seed=int(rngs["motion"].integers(2 ** 31)))
+    if config.world == "ship-waves":
+        from models.waves import WaveShipWorld
+        return WaveShipWorld(motion, rngs["motion"])
+    raise ConfigError(f"world = {config.world!r} is not a dynamic world (car, ship-waves)")
+
+
 def episode_motion(config: ScenarioConfig, rng: np.random.Generator):
     """The prescribed ship's motion of one episode (its random linear phases drawn)."""
     motion = config.motion
@@ -245,13 +259,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
 
     rngs = episode_rngs(seed)
     motion = config.motion
-    if config.world == "car":
-        from models.car import CarWorld
-        world = CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
-                         roughness_seed=int(rngs["motion"].integers(2 ** 31)))
-    else:
-        from models.waves import WaveShipWorld
-        world = WaveShipWorld(motion, rngs["motion"])
+    world = make_dynamic_world(config, rngs)
     run = world.run(config.duration)
     if world.smooth_truth:
         run = SmoothRun(run)

@@ -1,0 +1,276 @@
+"""Pictures of a scenario: the carrier's MuJoCo scene at any time of an episode, seen by a
+camera that follows it, with a close-up of the IMU (on its gimbal, where it has one) as
+an inset and an overlay of the time, the carrier's attitude and an estimator's attitude
+errors. ``aligngym render`` writes them as a video; the env's ``rgb_array`` frames are
+the same pictures.
+
+Prescribed worlds (the swaying ship, the marble platform) are posed from their analytic
+motion at the frame's time; dynamic worlds (the car, the wave-driven ship) are run once
+over the duration (the episode's own run: the same seed gives the same motion) and posed
+from the recorded steps.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.config import ConfigError, ScenarioConfig, load_scenario
+from scenarios.simulate import episode_rngs, make_dynamic_world, make_world
+
+
+@dataclass(frozen=True)
+class View:
+    """A camera on a world: distance (m) from the point looked at, elevation (deg, below
+    the horizon negative) and azimuth (deg) relative to the carrier's heading (0: looking
+    along its forward axis); inset: the close-up's distance (m) from the IMU."""
+
+    distance: float
+    elevation: float
+    azimuth: float
+    inset: float
+
+
+def world_view(config: ScenarioConfig) -> View:
+    """The follow camera and close-up of the scenario's world."""
+    if config.world == "static-platform":
+        return View(distance=3.2, elevation=-22.0, azimuth=-135.0, inset=0.9)
+    if config.world == "car":
+        return View(distance=11.0, elevation=-22.0, azimuth=-35.0, inset=1.6)
+    length = max(config.motion.hull_size)
+    gimbal = max(0.6 * min(1.0, config.motion.hull_size[0] / 18.0), 0.03 * length)
+    return View(distance=1.15 * length, elevation=-15.0, azimuth=30.0, inset=3.2 * gimbal)
+
+
+class SceneRenderer:
+    """Frames (height, width, 3) uint8 of one episode of a scenario (seed: the episode's,
+    which draws the motion's random phases, the sea or the road) over [0, duration] s."""
+
+    def __init__(self, config: ScenarioConfig, seed: int = 0, duration: float | None = None,
+                 size: tuple[int, int] = (480, 640)) -> None:
+        import mujoco
+
+        height, width = size
+        if not (16 <= height <= 2160 and 16 <= width <= 3840):
+            raise ConfigError(f"render size = {height}x{width} is out of range: height in "
+                              "[16, 2160], width in [16, 3840] pixels")
+        self.config, self.view, self.seed = config, world_view(config), seed
+        self.duration = config.duration if duration is None else float(duration)
+        rngs = episode_rngs(seed)
+        self._run = None
+        if config.world in ("car", "ship-waves"):
+            self.world = make_dynamic_world(config, rngs)
+            self._run = self.world.run(self.duration)
+        else:
+            self.world = make_world(config, rngs["motion"])
+        self.model, self.data = self.world.model, self.world.data
+        model = self.model
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        self._renderer = mujoco.Renderer(model, height, width)
+        inset = (height // 3, width // 3)
+        self._inset = mujoco.Renderer(model, *inset)
+        self._camera, self._close = mujoco.MjvCamera(), mujoco.MjvCamera()
+        self._carrier = model.body("carrier").id
+        names = [model.body(i).name for i in range(model.nbody)]
+        self._imu_body = next((model.body(n).id for n in ("gimbal_inner", "imu_case")
+                               if n in names), self._carrier)
+        self._imu_site = model.site("imu").id
+        self._spin = [model.joint(f"{w}_spin").qposadr[0] for w in ("fl", "fr", "rl", "rr")
+                      ] if config.world == "car" else []
+        self._gimbal_qpos = getattr(self.world, "_gimbal_qpos", None)
+
+    # --- posing ------------------------------------------------------------------------
+    def pose(self, t: float) -> None:
+        """Put the world's MuJoCo data at time t (s) of the episode."""
+        import mujoco
+
+        if not 0.0 <= t <= self.duration + 1e-9:
+            raise ValueError(f"render time {t:g} s is outside the run [0, {self.duration:g}] s")
+        data = self.data
+        if self._run is None:
+            qpos, qvel, _ = self.world.joint_state(np.array([t]))
+            data.qpos[:], data.qvel[:] = qpos[0], qvel[0]
+        else:
+            run = self._run
+            k = int(np.clip(np.rint(t / run.dt), 0, run.t.size - 1))
+            data.qpos[0:3], data.qpos[3:7] = run.pos[k], run.quat[k]
+            if self._spin and run.wheel_angles is not None:
+                data.qpos[self._spin] = run.wheel_angles[k]
+            if self._gimbal_qpos is not None:
+                motion = run.gimbal or (self.config.motion.gimbal_state
+                                        if self.config.motion.has_gimbal else None)
+                if motion is not None:
+                    data.qpos[self._gimbal_qpos] = motion(np.array([t]))[0][0]
+        mujoco.mj_forward(self.model, data)
+
+    def _heading_deg(self) -> float:
+        """The carrier's forward axis' direction in the plane, deg from east, CCW."""
+        forward = self.data.xmat[self._carrier].reshape(3, 3)[:, 1]
+        return math.degrees(math.atan2(forward[1], forward[0]))
+
+    def _aim(self) -> None:
+        view, data = self.view, self.data
+        carrier, imu = data.xpos[self._carrier], data.site_xpos[self._imu_site]
+        self._camera.lookat[:] = 0.5 * (carrier + imu) if self.config.world.startswith(
+            "ship") else imu
+        self._camera.distance, self._camera.elevation = view.distance, view.elevation
+        self._camera.azimuth = self._heading_deg() + view.azimuth
+        self._close.lookat[:] = data.xpos[self._imu_body]
+        self._close.distance, self._close.elevation = view.inset, -18.0
+        self._close.azimuth = self._heading_deg() + view.azimuth + 20.0
+
+    # --- pictures ----------------------------------------------------------------------
+    def frame(self, t: float, lines: list[str] | None = None) -> np.ndarray:
+        """The scene at time t (s): the follow camera's picture with the IMU's close-up in
+        its lower right corner, and the overlay (time, attitude, and the given lines)."""
+        self.pose(t)
+        self._aim()
+        self._renderer.update_scene(self.data, self._camera)
+        image = self._renderer.render().copy()
+        self._inset.update_scene(self.data, self._close)
+        close = self._inset.render()
+        h, w = close.shape[:2]
+        image[-h - 4:, -w - 4:] = 255                       # a white border
+        image[-h - 2:-2, -w - 2:-2] = close
+        return overlay(image, [self._status(t)] + list(lines or []))
+
+    def segmentation(self, t: float, close_up: bool = False) -> np.ndarray:
+        """Geom ids (height, width) int of the follow camera's (or the close-up's)
+        picture at time t; -1 where no geom is seen."""
+        self.pose(t)
+        self._aim()
+        renderer, camera = ((self._inset, self._close) if close_up
+                            else (self._renderer, self._camera))
+        renderer.enable_segmentation_rendering()
+        try:
+            renderer.update_scene(self.data, camera)
+            ids = renderer.render()[..., 0].astype(int)
+        finally:
+            renderer.disable_segmentation_rendering()
+        return ids
+
+    def _status(self, t: float) -> str:
+        from models.attitude import dcm_to_euler
+        pitch, roll, yaw = np.degrees(dcm_to_euler(
+            self.data.xmat[self._carrier].reshape(3, 3)[None])[0])
+        return (f"{self.config.name}   t = {t:7.2f} s   roll {roll:+6.2f}  pitch {pitch:+6.2f}"
+                f"  heading {(-yaw) % 360.0:6.2f} deg")
+
+    def close(self) -> None:
+        """Free the renderers' GL contexts."""
+        for renderer in (self._renderer, self._inset):
+            renderer.close()
+
+
+def overlay(image: np.ndarray, lines: list[str]) -> np.ndarray:
+    """The image with the lines of text written in its upper left corner on a dark band."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture, "RGBA")
+    size = max(10, image.shape[0] // 36)
+    try:
+        font = ImageFont.load_default(size=size)
+    except TypeError:                   # Pillow < 10.1: a fixed bitmap font
+        font = ImageFont.load_default()
+    height = int(1.35 * size) * len(lines) + 8
+    draw.rectangle([0, 0, image.shape[1], height], fill=(0, 0, 0, 150))
+    for i, line in enumerate(lines):
+        draw.text((6, 4 + i * int(1.35 * size)), line, fill=(255, 255, 255, 255), font=font)
+    return np.asarray(picture)
+
+
+@dataclass(frozen=True)
+class EstimatorTrack:
+    """An estimator's attitude errors over an episode: epoch times t (K,) s of the
+    scenario, errors (K, 3) arcmin (E, N, U), and whether and when it diverged."""
+
+    name: str
+    t: np.ndarray
+    error_arcmin: np.ndarray
+    start: float
+    diverged_at: float | None
+
+    def lines(self, t: float) -> list[str]:
+        """The overlay's line at time t (s)."""
+        if t < self.start:
+            return [f"{self.name}: coarse alignment (the filter starts at {self.start:g} s)"]
+        k = int(np.searchsorted(self.t, t, side="right")) - 1
+        if k < 0:
+            return [f"{self.name}: fine alignment starting"]
+        e = self.error_arcmin[k]
+        text = (f"{self.name}: attitude error E {e[0]:+8.2f}'  N {e[1]:+8.2f}'  "
+                f"U {e[2]:+8.2f}'")
+        if self.diverged_at is not None and t >= self.diverged_at:
+            text += "  DIVERGED"
+        return [text]
+
+
+def estimator_track(scenario: str, estimator: str, seed: int, until: float
+                    ) -> EstimatorTrack:
+    """Run the estimator passively (``scenarios.env``) on the scenario's episode of this
+    seed and record its attitude errors at its epochs up to time until (s)."""
+    from scenarios.env import AlignmentEnv
+
+    env = AlignmentEnv(scenario=scenario, estimator=estimator, cache_episodes=0)
+    env.reset(seed=seed, options={"episode_seed": seed})
+    start = env.alignment_start_s
+    times, errors, diverged_at = [], [], None
+    action = np.zeros(env.action_space.shape, dtype=np.float32)
+    while True:
+        _, _, terminated, truncated, info = env.step(action)
+        times.append(start + info["time_s"])
+        errors.append(info["error_arcmin"])
+        if info["diverged"] and diverged_at is None:
+            diverged_at = times[-1]
+        if terminated or truncated or times[-1] >= until:
+            break
+    env.close()
+    return EstimatorTrack(name=estimator, t=np.array(times), error_arcmin=np.array(errors),
+                          start=start, diverged_at=diverged_at)
+
+
+def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str | None = None,
+                 fps: float = 20.0, size: tuple[int, int] = (480, 640), start: float = 0.0
+                 ) -> dict:
+    """Write the scenario's episode of this seed over [start, config.duration] s as an
+    MP4 video (H.264, ``fps`` frames per s of the scenario's time), with the estimator's
+    attitude errors in the overlay when one is named. Returns {"path", "frames",
+    "seconds", "seconds_per_frame"}."""
+    import time
+    from pathlib import Path
+
+    import imageio.v2 as imageio
+
+    from scenarios.registry import SCENARIO_PAPER
+    if estimator and config.name not in SCENARIO_PAPER:
+        raise ConfigError("--estimator needs a scenario with an alignment pipeline ("
+                          + ", ".join(sorted(SCENARIO_PAPER)) + f"), not {config.name!r}")
+    if estimator and load_scenario(config.name).with_options(duration=config.duration) != config:
+        raise ConfigError(f"--estimator runs the pipeline of the shipped scenario "
+                          f"{config.name!r}, and this scenario file differs from it")
+    if not (math.isfinite(fps) and 1.0 <= fps <= 120.0):
+        raise ConfigError(f"--fps = {fps:g} is out of range [1, 120]")
+    path = Path(out)
+    if path.suffix.lower() != ".mp4":
+        raise ConfigError(f"--out {out}: the video is written as .mp4")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    track = (estimator_track(config.name, estimator, seed, config.duration)
+             if estimator else None)
+    renderer = SceneRenderer(config, seed=seed, size=size)
+    if not 0.0 <= start < config.duration:
+        raise ConfigError(f"--start = {start:g} s is outside the run [0, {config.duration:g}) s")
+    times = start + np.arange(int(math.floor((config.duration - start) * fps + 1e-9)) + 1) / fps
+    try:
+        with imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=8,
+                                ffmpeg_log_level="error") as writer:
+            for t in times:
+                writer.append_data(renderer.frame(float(t), track.lines(t) if track else None))
+    finally:
+        renderer.close()
+    seconds = time.perf_counter() - started
+    return {"path": path, "frames": times.size, "seconds": seconds,
+            "seconds_per_frame": seconds / times.size}

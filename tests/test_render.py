@@ -1,0 +1,133 @@
+"""Pictures of the scenarios (``scenarios.render``): the carrier and its IMU are seen
+(segmentation renders: each key geom covers pixels), frames are not blank and follow the
+motion, ``aligngym render`` writes a readable video, and bad options are one-line
+errors."""
+import numpy as np
+import pytest
+
+from scenarios.config import ConfigError, load_scenario
+from scenarios.render import SceneRenderer
+
+SIZE = (240, 320)
+
+
+def pixels(renderer: SceneRenderer, t: float, prefix: str, close_up: bool = False) -> int:
+    """Pixels showing the geoms whose names start with prefix."""
+    model = renderer.model
+    ids = [i for i in range(model.ngeom) if model.geom(i).name.startswith(prefix)]
+    assert ids, prefix
+    return int(np.isin(renderer.segmentation(t, close_up), ids).sum())
+
+
+@pytest.fixture(scope="module")
+def ship():
+    renderer = SceneRenderer(load_scenario("ship-sway-rotary").with_options(duration=20.0),
+                             seed=1, size=SIZE)
+    yield renderer
+    renderer.close()
+
+
+@pytest.mark.parametrize("prefix, least_wide, least_close", [
+    ("hull", 800, 0), ("bridge", 500, 0), ("gimbal_outer_frame", 5, 200),
+    ("gimbal_inner_frame", 3, 150), ("imu_case", 5, 150), ("imu_axis_", 1, 30)])
+def test_the_ship_its_gimbal_frames_and_the_imu_are_seen(ship, prefix, least_wide,
+                                                          least_close):
+    """In the follow camera's picture the hull and the bridge fill much of the frame and
+    the gimbal shows; in the close-up each gimbal frame, the IMU case and its axes cover
+    pixels (measured at 320x240 over four times: hull 1500-3300, bridge 1300-1450, the
+    close-up's outer frame 390-590, inner frame 290-350, IMU case 275-450, axes 58-196)."""
+    for t in (3.0, 11.0):          # two attitudes of the sway and of the gimbal
+        assert pixels(ship, t, prefix) >= least_wide
+        assert pixels(ship, t, prefix, close_up=True) >= least_close
+
+
+def test_frames_are_not_blank_and_follow_the_motion(ship):
+    """The sway moves the hull and the gimbal turns: the close-up differs between two
+    times by much more than the overlay does, and a frame has contrast."""
+    a, b = ship.frame(3.0), ship.frame(4.0)
+    assert a.shape == SIZE + (3,) and a.dtype == np.uint8
+    assert a.std() > 20
+    h, w = SIZE[0] // 3, SIZE[1] // 3
+    inset_a, inset_b = a[-h:, -w:].astype(int), b[-h:, -w:].astype(int)
+    assert (np.abs(inset_a - inset_b).sum(-1) > 30).mean() > 0.05
+    # the gimbal turns relative to the hull: the outer frame's pixels move
+    first = ship.segmentation(3.0, close_up=True)
+    second = ship.segmentation(4.0, close_up=True)
+    outer = [i for i in range(ship.model.ngeom)
+             if ship.model.geom(i).name.startswith("gimbal_outer_frame")]
+    assert (np.isin(first, outer) != np.isin(second, outer)).sum() > 100
+
+
+@pytest.mark.parametrize("name", ["usv-mems-swing", "usv-mems-waves", "static-large-azimuth"])
+def test_other_worlds_show_the_carrier_and_the_imu(name):
+    """The small boat (prescribed, and floating in its sea: posed from its own run) and
+    the marble platform: the carrier and the IMU case are seen."""
+    config = load_scenario(name).with_options(duration=10.0)
+    renderer = SceneRenderer(config, seed=2, size=SIZE)
+    try:
+        carrier = "hull" if name.startswith("usv") else "slab"
+        assert pixels(renderer, 6.0, carrier) > 1000
+        assert pixels(renderer, 6.0, "imu_case", close_up=True) > 100
+        assert renderer.frame(6.0).std() > 20
+    finally:
+        renderer.close()
+
+
+def test_the_wave_boat_is_posed_from_its_episode():
+    """The floating boat's pose is the episode's: its run with the same seed (the same
+    sea), the carrier's attitude read back from MuJoCo equal to the simulated truth."""
+    from models.attitude import dcm_to_quat, quat_angle
+    from scenarios.simulate import simulate
+    config = load_scenario("usv-mems-waves").with_options(duration=10.0)
+    renderer = SceneRenderer(config, seed=3, size=SIZE)
+    try:
+        episode = simulate(config, seed=3, ideal=True)
+        k = 600                                   # 6 s at 100 Hz
+        renderer.pose(float(episode.truth.t[k]))
+        C_b_t = renderer.data.xmat[renderer.model.body("carrier").id].reshape(3, 3)
+        # the truth's q_b_n is in ENU at the IMU; the plane t is ENU at the origin: the
+        # two differ by the meridian convergence over metres (< 1e-6 rad)
+        assert quat_angle(dcm_to_quat(C_b_t), episode.truth.q_b_n[k]) < 1e-5
+    finally:
+        renderer.close()
+
+
+def test_render_writes_a_video(tmp_path):
+    from scenarios.cli import main
+    import imageio.v2 as imageio
+    out = tmp_path / "ship.mp4"
+    assert main(["render", "static-large-azimuth", "--duration", "1", "--fps", "4",
+                 "--size", "96x128", "--out", str(out)]) == 0
+    frames = list(iter(imageio.get_reader(out)))
+    assert len(frames) == 5 and frames[0].shape == (96, 128, 3)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--fps", "500"], "--fps = 500 is out of range"),
+    (["--size", "big"], "--size must be HxW"),
+    (["--size", "4x4"], "render size = 4x4 is out of range"),
+    (["--start", "50", "--duration", "1", "--out", "x.avi"], "the video is written as .mp4"),
+])
+def test_bad_render_options_are_one_line_errors(tmp_path, capsys, argv, message):
+    from scenarios.cli import main
+    args = ["render", "static-large-azimuth", "--duration", "1",
+            "--out", str(tmp_path / "v.mp4"), *argv]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
+
+
+def test_an_estimator_needs_a_pipeline(tmp_path):
+    from scenarios.render import render_video
+    path = tmp_path / "mine.toml"
+    from scenarios.registry import DATA_DIR
+    text = (DATA_DIR / "ship-sway-rotary.toml").read_text()
+    path.write_text(text.replace('name = "ship-sway-rotary"', 'name = "my-ship"'))
+    config = load_scenario(str(path)).with_options(duration=1.0)
+    with pytest.raises(ConfigError, match="--estimator needs a scenario with an alignment"):
+        render_video(config, str(tmp_path / "v.mp4"), estimator="kf")
+    # a file that keeps a shipped scenario's name but changes it is not run as that one
+    path.write_text(text.replace("latitude_deg = 40.0", "latitude_deg = 41.0"))
+    config = load_scenario(str(path)).with_options(duration=1.0)
+    with pytest.raises(ConfigError, match="this scenario file differs from it"):
+        render_video(config, str(tmp_path / "v.mp4"), estimator="kf")
