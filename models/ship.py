@@ -140,6 +140,10 @@ def hull_mass_properties(hull_size: tuple[float, float, float]
     return mass, tuple(i * mass / mass0 * r for i, r in zip(inertia0, ratio))
 
 
+SEA_GRID = 161
+"""Rows and columns of a rendered sea patch's heightfield."""
+
+
 def _vertices(points) -> str:
     """MJCF vertex list of (N, 3) points, m."""
     return " ".join(f"{v:.4g}" for p in points for v in p)
@@ -167,7 +171,8 @@ def hull_vertices(beam: float, length: float, depth: float, top: float
 def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
               antenna_b: tuple[float, float, float] | None = None,
               hull_size: tuple[float, float, float] = REFERENCE_HULL[0],
-              indexer: IndexerSpec | None = None) -> str:
+              indexer: IndexerSpec | None = None,
+              sea_patch: tuple[float, float] | None = None) -> str:
     """MJCF of the hull (body "carrier"), the double-axis gimbal, the IMU site and the
     GNSS antenna site "antenna" (at antenna_b, m; None: at the IMU) with its position and
     velocity sensors.
@@ -184,7 +189,9 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
     ring through the inner axis' bearings, orange, geoms "gimbal_outer_frame*"), its inner
     frame (green, "gimbal_inner_frame*"), the IMU case ("imu_case") with its sensor axes
     x, y, z drawn red, green, blue ("imu_axis_x/y/z"), drawn at a visible size (the
-    gimbal's drawing is at least 3 % of the hull's length); sky and sea.
+    gimbal's drawing is at least 3 % of the hull's length); sky and sea. sea_patch
+    (half size m, largest elevation m): a heightfield "sea" of that size around the
+    origin, which a renderer fills with the waves (``scenarios.render``).
     """
     x, y, z = lever_arm_b
     ax, ay, az = lever_arm_b if antenna_b is None else antenna_b
@@ -215,6 +222,13 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
                         f'kp="{total * w_n ** 2!r}" '
                         f'kv="{2 * indexer.damping_ratio * w_n * total!r}"/></actuator>')
     visual = 'contype="0" conaffinity="0" mass="0"'
+    sea_asset = sea_geom = ""
+    if sea_patch is not None:
+        half, crest = sea_patch
+        sea_asset = (f'<hfield name="sea" nrow="{SEA_GRID}" ncol="{SEA_GRID}" '
+                     f'size="{half:g} {half:g} {2 * crest:g} {0.05 * crest:g}"/>')
+        sea_geom = (f'<geom name="sea_waves" type="hfield" hfield="sea" pos="0 0 {-crest:g}" '
+                    f'material="sea" group="1" {visual}/>')
     foot = (float(np.clip(x, -0.5 * beam, 0.5 * beam)), y, top)   # on the deck
     base = (x, y, z - 1.3 * g)                                     # under the gimbal
     antenna_mast = ""
@@ -254,22 +268,27 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
   <option timestep="0.005" integrator="implicitfast"/>
   <statistic extent="{2.0 * max(hull_size):g}" center="0 0 0"/>
   <visual><global offwidth="1280" offheight="960"/><quality shadowsize="4096"/>
-    <map znear="0.01" zfar="50000"/><headlight ambient=".35 .35 .35" diffuse=".5 .5 .5"/></visual>
+    <map znear="0.01" zfar="50000"/><headlight ambient=".3 .3 .3" diffuse=".25 .25 .25"/></visual>
   <asset>
     <texture name="sky" type="skybox" builtin="gradient" rgb1=".55 .72 .9" rgb2=".95 .97 1"
              width="512" height="512"/>
     <texture name="sea" type="2d" builtin="flat" rgb1=".07 .24 .40" width="64" height="64"/>
-    <material name="sea" texture="sea" reflectance="0" specular=".5" shininess=".8"/>
+    <material name="sea" texture="sea" reflectance="0" specular=".8" shininess=".3"/>
     <material name="hull" rgba=".22 .27 .36 1" specular=".3"/>
     <material name="deck" rgba=".62 .58 .50 1"/>
     <material name="white" rgba=".93 .93 .95 1" specular=".4"/>
     <mesh name="hull" vertex="{_vertices(hull)}"/>
     <mesh name="deck" vertex="{_vertices(deck)}"/>
+    {sea_asset}
   </asset>
   <worldbody>
-    <light pos="0 0 2000" dir="-.3 .2 -1" directional="true" diffuse=".7 .7 .7"
+    <light pos="0 0 2000" dir="-.3 .2 -1" directional="true" diffuse=".45 .45 .45"
            castshadow="false"/>
-    <geom name="sea" type="plane" size="3000 3000 1" material="sea" contype="0" conaffinity="0"/>
+    <light pos="0 0 2000" dir=".85 .35 -.4" directional="true" diffuse=".5 .5 .5"
+           specular=".4 .4 .4" castshadow="false"/>
+    <geom name="sea" type="plane" size="3000 3000 1" material="sea" contype="0" conaffinity="0"
+          pos="0 0 {-(sea_patch[1] if sea_patch else 0.0):g}"/>
+    {sea_geom}
     <body name="carrier">
       <freejoint name="hull"/>
       {inertial}

@@ -194,8 +194,13 @@ class WaveShipWorld:
                              f"wave-driven hull's servo steps with the physics, {timestep:g} s")
         self.motion = motion
         self.force_period = force_period
+        # The rendered sea: a few peak wavelengths around the hull, crests to 1.2 Hs.
+        wavelength = 9.81 * motion.peak_period ** 2 / (2 * math.pi)
+        patch = (max(3.0 * max(motion.hull_size), 2.0 * wavelength),
+                 max(1.2 * motion.significant_wave_height, 0.05))
         xml = ship_mjcf(motion.lever_arm_b, floating=True, antenna_b=motion.antenna_b,
-                        hull_size=motion.hull_size, indexer=motion.indexer).replace(
+                        hull_size=motion.hull_size, indexer=motion.indexer,
+                        sea_patch=patch).replace(
             '<option timestep="0.005" integrator="implicitfast"/>',
             f'<option timestep="{timestep:g}" integrator="implicitfast"/>')
         self.model = mujoco.MjModel.from_xml_string(xml)
@@ -231,6 +236,16 @@ class WaveShipWorld:
         mujoco.mj_forward(self.model, self.data)
         return self.model.body_inertia[self._hull].copy() * (
             self.model.body_subtreemass[self._hull] / self.model.body_mass[self._hull])
+
+    def sea_surface(self, t: float, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Elevation (m) of the sea at time t (s) at plane points x, y (m, any shape):
+        the long-crested waves are a profile along their direction, sampled at 1024
+        points across the region and interpolated."""
+        a, w, k, phase = self.sea
+        along = x * self._direction[0] + y * self._direction[1]
+        s = np.linspace(along.min(), along.max(), 1024)
+        profile = np.cos(np.outer(s, k) - w * t + phase) @ a
+        return np.interp(along, s, profile)
 
     def wave_at(self, t: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Elevation (m) and slope (dη/dE, dη/dN) of the sea at plane point xy (2,) m,

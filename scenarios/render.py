@@ -80,6 +80,8 @@ class SceneRenderer:
         self._spin = [model.joint(f"{w}_spin").qposadr[0] for w in ("fl", "fr", "rl", "rr")
                       ] if config.world == "car" else []
         self._gimbal_qpos = getattr(self.world, "_gimbal_qpos", None)
+        self._sea = model.hfield("sea").id if any(
+            model.hfield(i).name == "sea" for i in range(model.nhfield)) else None
 
     # --- posing ------------------------------------------------------------------------
     def pose(self, t: float) -> None:
@@ -104,6 +106,26 @@ class SceneRenderer:
                 if motion is not None:
                     data.qpos[self._gimbal_qpos] = motion(np.array([t]))[0][0]
         mujoco.mj_forward(self.model, data)
+        if self._sea is not None:
+            self._waves(t)
+
+    def _waves(self, t: float) -> None:
+        """Fill the sea's heightfield with the waves at time t and upload it to both
+        renderers' GL contexts."""
+        import mujoco
+
+        model, hid = self.model, self._sea
+        rows, cols = model.hfield_nrow[hid], model.hfield_ncol[hid]
+        half_x, half_y, top, _ = model.hfield_size[hid]
+        x, y = np.meshgrid(np.linspace(-half_x, half_x, cols), np.linspace(-half_y, half_y, rows))
+        crest = 0.5 * top
+        eta = self.world.sea_surface(t, x, y)
+        start = model.hfield_adr[hid]
+        model.hfield_data[start:start + rows * cols] = np.clip(
+            (eta + crest) / top, 0.0, 1.0).ravel()
+        for renderer in (self._renderer, self._inset):
+            renderer._gl_context.make_current()
+            mujoco.mjr_uploadHField(model, renderer._mjr_context, hid)
 
     def _heading_deg(self) -> float:
         """The carrier's forward axis' direction in the plane, deg from east, CCW."""
