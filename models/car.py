@@ -133,6 +133,10 @@ def car_mjcf(p: CarParams, roughness_seed: int = 0, extent: float = 600.0,
     # statistic (0.2 x its size), which the track would widen; the heightfield's
     # (its diagonal) would clip views closer than ~6 m. Visual only.
     statistic = f'<statistic extent="{0.2 * extent!r}" center="0 0 0"/>'
+    # Grass beyond the ground's edge, just below it, out to the far clipping plane.
+    low = min(0.0, float(heights.min())) if hfield else 0.0
+    horizon = geom("horizon", "plane", (20 * extent, 20 * extent, 1), (0, 0, low - 0.05),
+                   material="ground")
     xml = f"""
 <mujoco model="car">
   <option timestep="0.002" integrator="implicitfast" iterations="20" ls_iterations="10"/>
@@ -148,6 +152,7 @@ def car_mjcf(p: CarParams, roughness_seed: int = 0, extent: float = 600.0,
     <light name="sun" mode="trackcom" pos="6 -8 30" dir="-0.2 0.27 -1" cutoff="50"
            diffuse=".4 .4 .4" castshadow="true"/>
     {ground}
+    {horizon}
     {track_geoms}
     <body name="carrier" pos="0 0 {p.wheel_radius - z_wheel:g}">
       <freejoint name="chassis"/>
