@@ -12,6 +12,13 @@ velocity first and then moves the free joint with the new velocity: over step k 
 body rotates at the constant body rate omega_{k+1} and its origin moves at the constant
 world velocity v_{k+1}. ``CarWorld.run`` records exactly these, so the IMU increments
 can be made consistent with the discrete motion to rounding (``discrete_imu``).
+
+The scene (visual only, ``models.scene``: massless, contact-free geoms; the physics is
+bit-identical without them): the chassis box is the lower body of a red saloon with a
+cabin, windows, bumpers, lights, wheel arches and rims; the IMU case with its sensor axes
+(x red, y green, z blue) and, with a gimbal, its two frames; the GPS antenna on a mast;
+the track painted on the ground (asphalt road, dashed yellow path, white lane edges).
+The IMU sits inside the body: hide geom groups 0 and 1 to see the instruments.
 """
 from __future__ import annotations
 

@@ -1,11 +1,12 @@
 """A static marble platform with a strapdown IMU on it (paper 002, SPEC 4.4).
 
-A granite slab (the MuJoCo body "carrier", on a free joint) rests on a concrete pier in
-a laboratory; the IMU is bolted to the slab, sensor axes = body axes (no gimbal). The
+A polished marble slab (the MuJoCo body "carrier", on a free joint) rests on a concrete
+pier in a laboratory; the IMU is bolted to the slab, sensor axes = body axes (no gimbal). The
 slab never moves relative to the earth: its attitude is the constant PSINS Euler
 ``C_b_t = Rz(yaw) Rx(pitch) Ry(roll)`` (see ``models.attitude``), and the IMU's
 measurement point is the body origin, at the plane origin. An ideal IMU on it senses
-only the earth rate and the reaction to gravity.
+only the earth rate and the reaction to gravity. The scene draws the IMU's sensor axes
+(x red, y green, z blue; ``models.scene``, visual only).
 """
 from __future__ import annotations
 
@@ -40,6 +41,10 @@ class StaticPlatformMotion(GimbalRates):
         return np.array([self.pitch, self.roll, self.yaw_mean])
 
 
+MARBLE = "marble"
+"""Name of the slab's texture, which ``paint_marble`` fills."""
+
+
 def platform_mjcf(lever_arm_b: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> str:
     """MJCF of the marble platform: the slab (body "carrier") with the IMU case and site
     "imu" at lever_arm_b (m, body axes) on its top, on a world-fixed pier above the
@@ -60,7 +65,7 @@ def platform_mjcf(lever_arm_b: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> 
     return f"""
 <mujoco model="static-platform">
   <option timestep="0.005"/>
-  <visual><global offwidth="640" offheight="480"/><quality shadowsize="4096"/></visual>
+  <visual><global offwidth="640" offheight="480"/></visual>
   <asset>
     <texture name="sky" type="skybox" builtin="gradient" rgb1=".78 .8 .82" rgb2=".42 .44 .47"
              width="64" height="64"/>
@@ -96,10 +101,6 @@ def platform_mjcf(lever_arm_b: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> 
 {IMU_SENSORS_MJCF}
 </mujoco>
 """
-
-
-MARBLE = "marble"
-"""Name of the slab's texture, which ``paint_marble`` fills."""
 
 
 def paint_marble(model, seed: int = 2) -> None:
