@@ -35,9 +35,9 @@ class View:
 def world_view(config: ScenarioConfig) -> View:
     """The follow camera and close-up of the scenario's world."""
     if config.world == "static-platform":
-        return View(distance=3.2, elevation=-22.0, azimuth=-135.0, inset=0.9)
+        return View(distance=2.8, elevation=-30.0, azimuth=135.0, inset=0.9)
     if config.world == "car":
-        return View(distance=11.0, elevation=-22.0, azimuth=-35.0, inset=1.6)
+        return View(distance=10.0, elevation=-20.0, azimuth=40.0, inset=1.1)
     length = max(config.motion.hull_size)
     gimbal = max(0.6 * min(1.0, config.motion.hull_size[0] / 18.0), 0.03 * length)
     return View(distance=1.15 * length, elevation=-15.0, azimuth=30.0, inset=3.2 * gimbal)
@@ -72,10 +72,10 @@ class SceneRenderer:
         inset = (height // 3, width // 3)
         self._inset = mujoco.Renderer(model, *inset)
         self._camera, self._close = mujoco.MjvCamera(), mujoco.MjvCamera()
+        self._inset_option = mujoco.MjvOption()
+        if config.world == "car":       # the IMU sits inside the body: the close-up shows
+            self._inset_option.geomgroup[:] = [0, 0, 1, 0, 0, 0]    # the instruments alone
         self._carrier = model.body("carrier").id
-        names = [model.body(i).name for i in range(model.nbody)]
-        self._imu_body = next((model.body(n).id for n in ("gimbal_inner", "imu_case")
-                               if n in names), self._carrier)
         self._imu_site = model.site("imu").id
         self._spin = [model.joint(f"{w}_spin").qposadr[0] for w in ("fl", "fr", "rl", "rr")
                       ] if config.world == "car" else []
@@ -139,7 +139,7 @@ class SceneRenderer:
             "ship") else imu
         self._camera.distance, self._camera.elevation = view.distance, view.elevation
         self._camera.azimuth = self._heading_deg() + view.azimuth
-        self._close.lookat[:] = data.xpos[self._imu_body]
+        self._close.lookat[:] = imu
         self._close.distance, self._close.elevation = view.inset, -18.0
         self._close.azimuth = self._heading_deg() + view.azimuth + 20.0
 
@@ -151,7 +151,7 @@ class SceneRenderer:
         self._aim()
         self._renderer.update_scene(self.data, self._camera)
         image = self._renderer.render().copy()
-        self._inset.update_scene(self.data, self._close)
+        self._inset.update_scene(self.data, self._close, scene_option=self._inset_option)
         close = self._inset.render()
         h, w = close.shape[:2]
         image[-h - 4:, -w - 4:] = 255                       # a white border
@@ -167,7 +167,8 @@ class SceneRenderer:
                             else (self._renderer, self._camera))
         renderer.enable_segmentation_rendering()
         try:
-            renderer.update_scene(self.data, camera)
+            renderer.update_scene(self.data, camera,
+                                  scene_option=self._inset_option if close_up else None)
             ids = renderer.render()[..., 0].astype(int)
         finally:
             renderer.disable_segmentation_rendering()

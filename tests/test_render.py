@@ -58,14 +58,17 @@ def test_frames_are_not_blank_and_follow_the_motion(ship):
     assert (np.isin(first, outer) != np.isin(second, outer)).sum() > 100
 
 
-@pytest.mark.parametrize("name", ["usv-mems-swing", "usv-mems-waves", "static-large-azimuth"])
+@pytest.mark.parametrize("name", ["usv-mems-swing", "usv-mems-waves", "static-large-azimuth",
+                                  "figure8-gps"])
 def test_other_worlds_show_the_carrier_and_the_imu(name):
-    """The small boat (prescribed, and floating in its sea: posed from its own run) and
-    the marble platform: the carrier and the IMU case are seen."""
+    """The small boat (prescribed, and floating in its sea: posed from its own run), the
+    marble platform and the car (its run; the close-up shows the instruments inside the
+    body): the carrier and the IMU case are seen."""
     config = load_scenario(name).with_options(duration=10.0)
     renderer = SceneRenderer(config, seed=2, size=SIZE)
     try:
-        carrier = "hull" if name.startswith("usv") else "slab"
+        carrier = {"usv-mems-swing": "hull", "usv-mems-waves": "hull",
+                   "static-large-azimuth": "slab", "figure8-gps": "cabin"}[name]
         assert pixels(renderer, 6.0, carrier) > 1000
         assert pixels(renderer, 6.0, "imu_case", close_up=True) > 100
         assert renderer.frame(6.0).std() > 20
