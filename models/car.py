@@ -599,3 +599,8 @@ class VehicleMotion(GimbalRates):
                 f"{G_LATERAL_MAX:.2f} (speed <= {math.sqrt(G_LATERAL_MAX * r_min):.1f} m/s)")
         if not self.accel > 0.0:
             raise ValueError(f"motion.accel = {self.accel:g} m/s^2 must be > 0")
+        for name, reach in (("imu_offset_b", 5.0), ("gps_antenna_b", 10.0)):
+            offset = getattr(self, name)
+            if not all(math.isfinite(v) and abs(v) <= reach for v in offset):
+                raise ValueError(f"motion.{name} = {list(offset)} m: each component must be "
+                                 f"within +-{reach:g} m of the chassis origin (on the car)")

@@ -194,7 +194,8 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                      help="frames per second of the episode's time (default: 20)")
     ren.add_argument("--size", default="480x640", metavar="HxW",
                      help="frame height x width, pixels (default: 480x640)")
-    ren.add_argument("--out", required=True, metavar="FILE.mp4", help="the video file")
+    ren.add_argument("--out", required=True, metavar="FILE.mp4",
+                     help="the video file (FILE.png: the frame at --start alone)")
 
     rep = sub.add_parser("report", help=rep_help, description=rep_help)
     rep.add_argument("dir", metavar="DIR", help="a bench --out directory (or a directory of "

@@ -259,9 +259,9 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
                  fps: float = 20.0, size: tuple[int, int] = (480, 640), start: float = 0.0
                  ) -> dict:
     """Write the scenario's episode of this seed over [start, config.duration] s as an
-    MP4 video (H.264, ``fps`` frames per s of the scenario's time), with the estimator's
-    attitude errors in the overlay when one is named. Returns {"path", "frames",
-    "seconds", "seconds_per_frame"}."""
+    MP4 video (H.264, ``fps`` frames per s of the scenario's time), or its frame at start
+    as a PNG (out ending in .png), with the estimator's attitude errors in the overlay
+    when one is named. Returns {"path", "frames", "seconds", "seconds_per_frame"}."""
     import time
     from pathlib import Path
 
@@ -277,15 +277,23 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
     if not (math.isfinite(fps) and 1.0 <= fps <= 120.0):
         raise ConfigError(f"--fps = {fps:g} is out of range [1, 120]")
     path = Path(out)
-    if path.suffix.lower() != ".mp4":
-        raise ConfigError(f"--out {out}: the video is written as .mp4")
+    if path.suffix.lower() not in (".mp4", ".png"):
+        raise ConfigError(f"--out {out}: the video is written as .mp4 (or one frame, at "
+                          "--start, as .png)")
+    if not 0.0 <= start < config.duration:
+        raise ConfigError(f"--start = {start:g} s is outside the run [0, {config.duration:g}) s")
     path.parent.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     track = (estimator_track(config.name, estimator, seed, config.duration)
              if estimator else None)
     renderer = SceneRenderer(config, seed=seed, size=size)
-    if not 0.0 <= start < config.duration:
-        raise ConfigError(f"--start = {start:g} s is outside the run [0, {config.duration:g}) s")
+    if path.suffix.lower() == ".png":
+        try:
+            imageio.imwrite(path, renderer.frame(start, track.lines(start) if track else None))
+        finally:
+            renderer.close()
+        seconds = time.perf_counter() - started
+        return {"path": path, "frames": 1, "seconds": seconds, "seconds_per_frame": seconds}
     times = start + np.arange(int(math.floor((config.duration - start) * fps + 1e-9)) + 1) / fps
     try:
         with imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=8,
