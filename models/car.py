@@ -367,6 +367,12 @@ def _track_scenery(track: Track, ground, rough: bool) -> tuple[str, str]:
 
 # --- tracks ------------------------------------------------------------------------------
 
+RADIUS_MAX = 1000.0
+"""m: the largest track (a ring's radius, a figure-8's half-width): a proving ground."""
+ROUGH_RADIUS_MAX = 500.0
+"""m: the largest track on a rough road (its 0.2 m heightfield: 5300^2 cells)."""
+
+
 @dataclass(frozen=True)
 class Track:
     """A closed path in the plane (E, N), m, starting at the origin heading north.
@@ -581,8 +587,13 @@ class VehicleMotion(GimbalRates):
         """Raise ValueError naming the field if the car cannot drive this."""
         if self.track not in ("ring", "figure8"):
             raise ValueError(f"motion.track = {self.track!r}; valid choices: figure8, ring")
-        if not self.radius > 0.0:
-            raise ValueError(f"motion.radius = {self.radius:g} m must be > 0")
+        if not 0.0 < self.radius <= RADIUS_MAX:
+            raise ValueError(f"motion.radius = {self.radius:g} m is out of range "
+                             f"(0, {RADIUS_MAX:g}]")
+        if self.roughness_rms > 0.0 and self.radius > ROUGH_RADIUS_MAX:
+            raise ValueError(f"motion.radius = {self.radius:g} m with a rough road: at most "
+                             f"{ROUGH_RADIUS_MAX:g} m (the road's heightfield grows with the "
+                             "track's square)")
         if not 0.0 <= self.speed <= 40.0:
             raise ValueError(f"motion.speed = {self.speed:g} m/s is out of range [0, 40]")
         p = self.car_params()
