@@ -341,7 +341,9 @@ def _track_scenery(track: Track, ground, rough: bool) -> tuple[str, str]:
     path itself as a dashed yellow line (1.5 m dashes every 3 m, 0.3 m wide) and solid
     white lane edges 2 m either side; meshes lifted above ground(x, y), m (on a rough
     road sampled every 0.25 m along and 0.5 m across, else every 0.5 m)."""
-    pts, s, normal = resample_closed(track.points, 0.25 if rough else 0.5)
+    length = float(np.sum(np.linalg.norm(np.diff(track.points, axis=0), axis=1)))
+    pts, s, normal = resample_closed(track.points, max(0.25 if rough else 0.5,
+                                                       length / TRACK_VERTICES))
     s_end = s[-1] + np.linalg.norm(pts[0] - pts[-1])
     rise = 0.015 * (1 - np.cos(2 * np.pi * s / s_end))[:, None]
 
@@ -367,8 +369,11 @@ def _track_scenery(track: Track, ground, rough: bool) -> tuple[str, str]:
 
 # --- tracks ------------------------------------------------------------------------------
 
-RADIUS_MAX = 1000.0
-"""m: the largest track (a ring's radius, a figure-8's half-width): a proving ground."""
+RADIUS_MAX = 20000.0
+"""m: the largest track (a ring's radius, a figure-8's half-width); 20 km rings stand in
+for a straight road."""
+TRACK_VERTICES = 20000
+"""The drawn track's most samples along the path (a long track's lines get coarser)."""
 ROUGH_RADIUS_MAX = 500.0
 """m: the largest track on a rough road (its 0.2 m heightfield: 5300^2 cells)."""
 
