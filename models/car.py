@@ -490,10 +490,14 @@ class CarWorld:
     contacts on a rough road change the rates within a step."""
 
     def __init__(self, params: CarParams, track: Track, profile: DriveProfile,
-                 roughness_seed: int = 0, control_period: int = 25) -> None:
+                 roughness_seed: int = 0, control_period: int = 25,
+                 draw_track: bool = False) -> None:
+        """draw_track: add the drawn road and lanes (visual meshes, for pictures; the
+        simulation is the same without them, and cheaper to build)."""
         self.params, self.track, self.profile = params, track, profile
         reach = np.abs(track.points).max() + 30.0
-        xml, assets = car_mjcf(params, roughness_seed, extent=float(reach), track=track)
+        xml, assets = car_mjcf(params, roughness_seed, extent=float(reach),
+                               track=track if draw_track else None)
         self.model = mujoco.MjModel.from_xml_string(xml)
         if "road" in assets:
             self.model.hfield_data[:] = assets["road"].ravel()
@@ -547,7 +551,7 @@ class CarWorld:
                       quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3], omega=qvel_hist[:, 3:6],
                       wheel_angles=np.unwrap(wheels, axis=0),
                       cross_track=np.repeat(xtrack, period)[: n + 1],
-                           imu_offset_b=np.asarray(p.imu_offset_b))
+                           imu_offset_b=np.asarray(p.imu_offset_b), qpos=qpos_hist)
 
 
 @dataclass(frozen=True)

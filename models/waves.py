@@ -313,7 +313,7 @@ class WaveShipWorld:
                            quat=qpos_hist[:, 3:7], vel=qvel_hist[:, 0:3],
                            omega=qvel_hist[:, 3:6],
                            imu_offset_b=np.asarray(motion.lever_arm_b, dtype=float),
-                           gimbal=gimbal)
+                           gimbal=gimbal, qpos=qpos_hist)
 
     def _hydrodynamic_wrench(self, eta: float, slope: tuple[float, float]) -> list[float]:
         """Force and torque (6,) in world axes at the hull's centre of mass, from the

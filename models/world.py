@@ -312,6 +312,9 @@ class DiscreteRun:
     wheel_angles: np.ndarray | None = None
     cross_track: np.ndarray | None = None
     gimbal: GimbalMotion | None = None
+    qpos: np.ndarray | None = None
+    """(n+1, nq): every joint at every step (steering and suspension included), for
+    pictures; None where not recorded."""
 
     def point_kinematics(self, r_b: np.ndarray, index: np.ndarray | slice = slice(None)
                          ) -> tuple[np.ndarray, np.ndarray]:

@@ -352,7 +352,7 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
 
 def _cmd_render(args: argparse.Namespace) -> int:
     from scenarios.config import ConfigError, load_scenario
-    from scenarios.render import render_video
+    from scenarios.render import check_size, render_video
 
     try:
         size = tuple(int(v) for v in args.size.lower().split("x"))
@@ -360,9 +360,26 @@ def _cmd_render(args: argparse.Namespace) -> int:
         size = ()
     if len(size) != 2:
         raise ConfigError(f"--size must be HxW in pixels, e.g. 480x640, got {args.size!r}")
-    config = load_scenario(args.scenario).with_options(duration=args.start + args.duration)
-    done = render_video(config, args.out, seed=args.seed, estimator=args.estimator,
-                        fps=args.fps, size=size, start=args.start)
+    check_size(size)
+    if args.estimator:
+        from estimators.filters import UnknownFilter, filter_entry
+        try:
+            filter_entry(args.estimator)
+        except UnknownFilter as exc:
+            raise ConfigError(f"--estimator: {exc}") from None
+    scenario = load_scenario(args.scenario)
+    # A PNG needs the run up to --start only; the run is a whole number of IMU intervals.
+    end = args.start + (0.0 if args.out.lower().endswith(".png") else args.duration)
+    end = max(math.ceil(end * scenario.imu_rate - 1e-9), 2) / scenario.imu_rate
+    try:
+        config = scenario.with_options(duration=end)
+    except ConfigError as exc:
+        raise ConfigError(f"render to {end:g} s: {exc}") from None
+    try:
+        done = render_video(config, args.out, seed=args.seed, estimator=args.estimator,
+                            fps=args.fps, size=size, start=args.start)
+    except OSError as exc:
+        raise ConfigError(f"--out {args.out}: {exc.strerror or exc}") from None
     print(f"wrote {done['path']}: {done['frames']} frames, {done['seconds']:.1f} s "
           f"({done['seconds_per_frame'] * 1e3:.0f} ms per frame)")
     return 0

@@ -20,6 +20,14 @@ from scenarios.config import ConfigError, ScenarioConfig, load_scenario
 from scenarios.simulate import episode_rngs, make_dynamic_world, make_world
 
 
+def check_size(size: tuple[int, int]) -> None:
+    """One-line ConfigError for a frame size (height, width) outside the renderer's."""
+    height, width = size
+    if not (16 <= height <= 2160 and 16 <= width <= 3840):
+        raise ConfigError(f"render size = {height}x{width} is out of range: height in "
+                          "[16, 2160], width in [16, 3840] pixels")
+
+
 @dataclass(frozen=True)
 class View:
     """A camera on a world: distance (m) from the point looked at, elevation (deg, below
@@ -51,16 +59,14 @@ class SceneRenderer:
                  size: tuple[int, int] = (480, 640)) -> None:
         import mujoco
 
+        check_size(size)
         height, width = size
-        if not (16 <= height <= 2160 and 16 <= width <= 3840):
-            raise ConfigError(f"render size = {height}x{width} is out of range: height in "
-                              "[16, 2160], width in [16, 3840] pixels")
         self.config, self.view, self.seed = config, world_view(config), seed
         self.duration = config.duration if duration is None else float(duration)
         rngs = episode_rngs(seed)
         self._run = None
         if config.world in ("car", "ship-waves"):
-            self.world = make_dynamic_world(config, rngs)
+            self.world = make_dynamic_world(config, rngs, pictures=True)
             self._run = self.world.run(self.duration)
         else:
             self.world = make_world(config, rngs["motion"])
@@ -69,16 +75,17 @@ class SceneRenderer:
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
         self._renderer = mujoco.Renderer(model, height, width)
-        inset = (height // 3, width // 3)
-        self._inset = mujoco.Renderer(model, *inset)
+        try:
+            self._inset = mujoco.Renderer(model, height // 3, width // 3)
+        except Exception:
+            self._renderer.close()
+            raise
         self._camera, self._close = mujoco.MjvCamera(), mujoco.MjvCamera()
         self._inset_option = mujoco.MjvOption()
         if config.world == "car":       # the IMU sits inside the body: the close-up shows
             self._inset_option.geomgroup[:] = [0, 0, 1, 0, 0, 0]    # the instruments alone
         self._carrier = model.body("carrier").id
         self._imu_site = model.site("imu").id
-        self._spin = [model.joint(f"{w}_spin").qposadr[0] for w in ("fl", "fr", "rl", "rr")
-                      ] if config.world == "car" else []
         self._gimbal_qpos = getattr(self.world, "_gimbal_qpos", None)
         self._sea = model.hfield("sea").id if any(
             model.hfield(i).name == "sea" for i in range(model.nhfield)) else None
@@ -97,9 +104,7 @@ class SceneRenderer:
         else:
             run = self._run
             k = int(np.clip(np.rint(t / run.dt), 0, run.t.size - 1))
-            data.qpos[0:3], data.qpos[3:7] = run.pos[k], run.quat[k]
-            if self._spin and run.wheel_angles is not None:
-                data.qpos[self._spin] = run.wheel_angles[k]
+            data.qpos[:] = run.qpos[k]          # every joint: wheels, steering, suspension
             if self._gimbal_qpos is not None:
                 motion = run.gimbal or (self.config.motion.gimbal_state
                                         if self.config.motion.has_gimbal else None)
@@ -124,7 +129,10 @@ class SceneRenderer:
         model.hfield_data[start:start + rows * cols] = np.clip(
             (eta + crest) / top, 0.0, 1.0).ravel()
         for renderer in (self._renderer, self._inset):
-            renderer._gl_context.make_current()
+            context = getattr(renderer, "_gl_context", None)   # MuJoCo's own, private
+            if context is None or getattr(renderer, "_mjr_context", None) is None:
+                continue                                        # no GL: nothing to upload
+            context.make_current()
             mujoco.mjr_uploadHField(model, renderer._mjr_context, hid)
 
     def _heading_deg(self) -> float:
@@ -160,7 +168,9 @@ class SceneRenderer:
 
     def segmentation(self, t: float, close_up: bool = False) -> np.ndarray:
         """Geom ids (height, width) int of the follow camera's (or the close-up's)
-        picture at time t; -1 where no geom is seen."""
+        picture at time t; -1 where no geom is seen (sites included)."""
+        import mujoco
+
         self.pose(t)
         self._aim()
         renderer, camera = ((self._inset, self._close) if close_up
@@ -169,7 +179,9 @@ class SceneRenderer:
         try:
             renderer.update_scene(self.data, camera,
                                   scene_option=self._inset_option if close_up else None)
-            ids = renderer.render()[..., 0].astype(int)
+            picture = renderer.render()
+            ids = np.where(picture[..., 1] == mujoco.mjtObj.mjOBJ_GEOM,
+                           picture[..., 0].astype(int), -1)
         finally:
             renderer.disable_segmentation_rendering()
         return ids
@@ -178,6 +190,7 @@ class SceneRenderer:
         from models.attitude import dcm_to_euler
         pitch, roll, yaw = np.degrees(dcm_to_euler(
             self.data.xmat[self._carrier].reshape(3, 3)[None])[0])
+        # heading: clockwise from north (the PSINS yaw is counter-clockwise)
         return (f"{self.config.name}   t = {t:7.2f} s   roll {roll:+6.2f}  pitch {pitch:+6.2f}"
                 f"  heading {(-yaw) % 360.0:6.2f} deg")
 
@@ -232,9 +245,10 @@ class EstimatorTrack:
 
 
 def estimator_track(scenario: str, estimator: str, seed: int, until: float
-                    ) -> EstimatorTrack:
+                    ) -> tuple[EstimatorTrack, ScenarioConfig]:
     """Run the estimator passively (``scenarios.env``) on the scenario's episode of this
-    seed and record its attitude errors at its epochs up to time until (s)."""
+    seed and record its attitude errors at its epochs up to time until (s). Returns them
+    and the scenario as the pipeline runs it (an experiment may set its motion)."""
     from scenarios.env import AlignmentEnv
 
     env = AlignmentEnv(scenario=scenario, estimator=estimator, cache_episodes=0)
@@ -251,8 +265,8 @@ def estimator_track(scenario: str, estimator: str, seed: int, until: float
         if terminated or truncated or times[-1] >= until:
             break
     env.close()
-    return EstimatorTrack(name=estimator, t=np.array(times), error_arcmin=np.array(errors),
-                          start=start, diverged_at=diverged_at)
+    return (EstimatorTrack(name=estimator, t=np.array(times), error_arcmin=np.array(errors),
+                           start=start, diverged_at=diverged_at), env.config)
 
 
 def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str | None = None,
@@ -280,12 +294,14 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
     if path.suffix.lower() not in (".mp4", ".png"):
         raise ConfigError(f"--out {out}: the video is written as .mp4 (or one frame, at "
                           "--start, as .png)")
-    if not 0.0 <= start < config.duration:
+    if not 0.0 <= start <= config.duration:
         raise ConfigError(f"--start = {start:g} s is outside the run [0, {config.duration:g}) s")
     path.parent.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    track = (estimator_track(config.name, estimator, seed, config.duration)
-             if estimator else None)
+    track = None
+    if estimator:       # the picture of the episode the filter ran on
+        track, pipeline = estimator_track(config.name, estimator, seed, config.duration)
+        config = pipeline.with_options(duration=config.duration)
     renderer = SceneRenderer(config, seed=seed, size=size)
     if path.suffix.lower() == ".png":
         try:

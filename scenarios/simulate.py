@@ -1,6 +1,7 @@
 """One episode of a scenario: MuJoCo truth, ideal or erroneous IMU increments, encoders."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -82,14 +83,17 @@ def make_world(config: ScenarioConfig, rng: np.random.Generator) -> PrescribedWo
     return ShipWorld(episode_motion(config, rng))
 
 
-def make_dynamic_world(config: ScenarioConfig, rngs: dict[str, np.random.Generator]):
+def make_dynamic_world(config: ScenarioConfig, rngs: dict[str, np.random.Generator],
+                       pictures: bool = False):
     """The scenario's dynamic MuJoCo world (the car with its road, or the wave-driven
-    ship with its sea), drawn from the episode's random streams (``episode_rngs``)."""
+    ship with its sea), drawn from the episode's random streams (``episode_rngs``);
+    pictures: with the car's drawn track (visual only: the same motion)."""
     motion = config.motion
     if config.world == "car":
         from models.car import CarWorld
         return CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
-                        roughness_seed=int(rngs["motion"].integers(2 ** 31)))
+                        roughness_seed=int(rngs["motion"].integers(2 ** 31)),
+                        draw_track=pictures)
     if config.world == "ship-waves":
         from models.waves import WaveShipWorld
         return WaveShipWorld(motion, rngs["motion"])
@@ -163,7 +167,8 @@ def _faults(config: ScenarioConfig, imu_t, dtheta, dv, extra: dict):
         rows += [("gnss_outage", start, min(end, config.duration))
                  for start, end in gps.outages if start < config.duration]
         for when, *_ in gps.outliers:               # the stamp of the fix it is put on
-            stamp = round((when - gps.latency) * gps.rate) / gps.rate + gps.latency
+            # the nearest fix, the earlier on a tie (as sensors.gps.measure picks it)
+            stamp = math.ceil((when - gps.latency) * gps.rate - 0.5) / gps.rate + gps.latency
             rows.append(("gnss_outlier", stamp, stamp))
     if config.odometer is not None:
         rows += [("odometer_slip", start, start + duration)

@@ -20,7 +20,7 @@ IMU axis)."""
 @pytest.fixture(scope="module", params=["ring-road-odometer", "figure8-gps"])
 def car_world(request):
     motion = load_scenario(request.param).motion
-    return CarWorld(motion.car_params(), motion.make_track(), motion.profile())
+    return CarWorld(motion.car_params(), motion.make_track(), motion.profile(), draw_track=True)
 
 
 @pytest.fixture(scope="module")
