@@ -17,6 +17,7 @@ import numpy as np
 from models.attitude import euler_to_quat
 from models.indexer import IndexerSpec, cached_indexer
 from models.units import deg
+from models.scene import INSTRUMENTS, VISUAL, fmt, imu_axes, mesh_asset, torus_mesh
 from models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
                           stalled)
 
@@ -144,12 +145,7 @@ SEA_GRID = 161
 """Rows and columns of a rendered sea patch's heightfield."""
 
 
-def _vertices(points) -> str:
-    """MJCF vertex list of (N, 3) points, m."""
-    return " ".join(f"{v:.4g}" for p in points for v in p)
-
-
-def hull_vertices(beam: float, length: float, depth: float, top: float
+def hullfmt(beam: float, length: float, depth: float, top: float
                   ) -> tuple[list, list]:
     """Visual hull and deck outlines (half beam, half length, depth, m; R, F, U from the
     sway centre, the deck at height top, m): the hull's convex outline with a raked bow
@@ -186,8 +182,8 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
 
     The scene (visual geoms only, massless and without contacts): the hull with its deck,
     bridge, funnel and mast; a pedestal under the gimbal; the gimbal's outer frame (a
-    ring through the inner axis' bearings, orange, geoms "gimbal_outer_frame*"), its inner
-    frame (green, "gimbal_inner_frame*"), the IMU case ("imu_case") with its sensor axes
+    ring through the inner axis' bearings, orange, geom "gimbal_outer_frame"), its inner
+    frame (green, "gimbal_inner_frame"), the IMU case ("imu_case") with its sensor axes
     x, y, z drawn red, green, blue ("imu_axis_x/y/z"), drawn at a visible size (the
     gimbal's drawing is at least 3 % of the hull's length); sky and sea. sea_patch
     (half size m, largest elevation m): a heightfield "sea" of that size around the
@@ -197,7 +193,7 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
     ax, ay, az = lever_arm_b if antenna_b is None else antenna_b
     beam, length, depth = (0.5 * v for v in hull_size)
     top = 0.8 * depth                                  # the deck above the sway centre, m
-    hull, deck = hull_vertices(beam, length, 2.0 * depth, top)
+    hull, deck = hullfmt(beam, length, 2.0 * depth, top)
     scale = min(1.0, beam / 9.0)
     g = max(0.6 * scale, 0.03 * hull_size[1])          # the gimbal's drawn radius, m
     bridge = (min(7.0, 0.6 * beam), min(6.0, 0.1 * length), min(5.0, 0.6 * depth))
@@ -221,7 +217,7 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
             actuator = (f'<actuator><position name="indexer" joint="gimbal_outer" '
                         f'kp="{total * w_n ** 2!r}" '
                         f'kv="{2 * indexer.damping_ratio * w_n * total!r}"/></actuator>')
-    visual = 'contype="0" conaffinity="0" mass="0"'
+    visual = VISUAL
     sea_asset = sea_geom = ""
     if sea_patch is not None:
         half, crest = sea_patch
@@ -238,31 +234,14 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
                         f'rgba=".8 .8 .8 1" group="1" {visual}/>')
     pedestal = ""
     if np.linalg.norm(np.subtract(base, foot)) > 0.05 * g:
-        pedestal = (f'<geom name="pedestal" type="cylinder" fromto="{_vertices([foot, base])}" '
+        pedestal = (f'<geom name="pedestal" type="cylinder" fromto="{fmt([foot, base])}" '
                     f'size="{0.15 * g:.4g}" rgba=".5 .5 .55 1" group="1" {visual}/>')
 
-    def ring(name: str, radius: float, axis: str, rgba: str) -> str:
-        """A ring of 16 capsules of the given radius about the body's axis ("x" or "z")."""
-        parts = []
-        for k in range(16):
-            a0, a1 = 2 * np.pi * k / 16, 2 * np.pi * (k + 1) / 16
-            p0 = (radius * np.cos(a0), radius * np.sin(a0))
-            p1 = (radius * np.cos(a1), radius * np.sin(a1))
-            if axis == "x":      # the ring in the y-z plane
-                ends = (0.0, *p0, 0.0, *p1)
-            else:                # the ring in the x-y plane
-                ends = (*p0, 0.0, *p1, 0.0)
-            parts.append(f'<geom name="{name}{k}" type="capsule" size="{0.06 * radius:.4g}" '
-                         f'fromto="{_vertices([ends[:3], ends[3:]])}" rgba="{rgba}" '
-                         f'group="1" {visual}/>')
-        return "\n".join(parts)
+    # The gimbal's frames: rings about the inner axis' bearings (the outer one, its axis
+    # along x) and about the IMU's z axis (the inner one).
+    rings = {name: mesh_asset(name, *torus_mesh(radius, 0.06 * radius))
+             for name, radius in (("gimbal_outer_ring", g), ("gimbal_inner_ring", 0.75 * g))}
 
-    axes = "\n".join(
-        f'<geom name="imu_axis_{n}" type="capsule" size="{0.045 * g:.4g}" '
-        f'fromto="0 0 0 {_vertices([tuple(1.1 * g * e for e in d)])}" rgba="{c}" group="1" '
-        f'{visual}/>'
-        for n, d, c in (("x", (1, 0, 0), "1 .1 .1 1"), ("y", (0, 1, 0), ".1 .9 .1 1"),
-                        ("z", (0, 0, 1), ".2 .3 1 1")))
     return f"""
 <mujoco model="ship-sway-rotary">
   <option timestep="0.005" integrator="implicitfast"/>
@@ -277,8 +256,10 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
     <material name="hull" rgba=".22 .27 .36 1" specular=".3"/>
     <material name="deck" rgba=".62 .58 .50 1"/>
     <material name="white" rgba=".93 .93 .95 1" specular=".4"/>
-    <mesh name="hull" vertex="{_vertices(hull)}"/>
-    <mesh name="deck" vertex="{_vertices(deck)}"/>
+    <mesh name="hull" vertex="{fmt(hull)}"/>
+    <mesh name="deck" vertex="{fmt(deck)}"/>
+    {rings["gimbal_outer_ring"]}
+    {rings["gimbal_inner_ring"]}
     {sea_asset}
   </asset>
   <worldbody>
@@ -323,18 +304,20 @@ def ship_mjcf(lever_arm_b: tuple[float, float, float], floating: bool = False,
               pos="0 0 {-1.25 * g:.4g}" rgba=".95 .55 .1 1" group="1" {visual}/>
         <geom name="gimbal_outer_stem" type="capsule" size="{0.05 * g:.4g}"
               fromto="0 0 {-1.25 * g:.4g} 0 0 {-g:.4g}" rgba=".95 .55 .1 1" group="1" {visual}/>
-        {ring("gimbal_outer_frame", g, "x", ".95 .55 .1 1")}
+        <geom name="gimbal_outer_frame" type="mesh" mesh="gimbal_outer_ring" euler="0 90 0"
+              rgba=".95 .55 .1 1" group="{INSTRUMENTS}" {visual}/>
         <body name="gimbal_inner">
           <joint name="gimbal_inner" type="hinge" axis="1 0 0"/>
           {inner_mass}
           <geom type="box" size="{0.25 * scale:g} {0.25 * scale:g} {0.25 * scale:g}"
                 rgba=".2 .8 .3 1" contype="0" conaffinity="0" mass="10" group="3"/>
-          {ring("gimbal_inner_frame", 0.75 * g, "z", ".2 .75 .3 1")}
+          <geom name="gimbal_inner_frame" type="mesh" mesh="gimbal_inner_ring"
+                rgba=".2 .75 .3 1" group="{INSTRUMENTS}" {visual}/>
           <geom name="gimbal_inner_axle" type="capsule" size="{0.04 * g:.4g}"
                 fromto="{-g:.4g} 0 0 {g:.4g} 0 0" rgba=".6 .6 .6 1" group="1" {visual}/>
           <geom name="imu_case" type="box" size="{0.3 * g:.4g} {0.3 * g:.4g} {0.22 * g:.4g}"
                 rgba=".25 .25 .28 1" group="1" {visual}/>
-          {axes}
+          {imu_axes((0.0, 0.0, 0.0), 1.1 * g, 0.045 * g)}
           <site name="imu" size="0.05"/>
         </body>
       </body>
