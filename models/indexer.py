@@ -187,3 +187,12 @@ def cached_indexer(spec: IndexerSpec, duration: float, excitation: object = None
     hashable object with ``hull_yaw_accel(t)``, e.g. the prescribed hull motion)."""
     accel = None if excitation is None else excitation.hull_yaw_accel
     return simulate_indexer(spec, duration, accel)
+
+
+def indexer_run(spec: IndexerSpec, t: np.ndarray, excitation: object = None
+                ) -> IndexerMotion:
+    """The cached servo run (``cached_indexer``) covering times t (s): over [0, max t]
+    rounded up to whole 600 s, so that a render at one time and the episode see one
+    motion."""
+    horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
+    return cached_indexer(spec, horizon, excitation)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from models.attitude import euler_to_quat
-from models.indexer import IndexerSpec, cached_indexer
+from models.indexer import IndexerSpec, indexer_run
 from models.units import deg
 from models.scene import INSTRUMENTS, VISUAL, fmt, imu_axes, mesh_asset, torus_mesh
 from models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
@@ -66,15 +66,13 @@ class ShipSwayMotion(GimbalRates):
 
     def gimbal_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Gimbal angles (rad), rates (rad/s) and accelerations (rad/s^2), (N, 2) each
-        (outer, inner), at times t (N,) s: the indexer servo's simulated motion (run once
-        per process over [0, max t] rounded up to whole 600 s, so that a render at one time
-        and the episode see one motion) or the constant rates."""
+        (outer, inner), at times t (N,) s: the indexer servo's simulated motion
+        (``indexer_run``) or the constant rates."""
         if self.indexer is None:
             return super().gimbal_state(t)
         # The servo is excited by the hull's turning only: one run serves every linear phase.
         hull = replace(self, linear_phase=(0.0, 0.0, 0.0))
-        horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
-        return stalled(cached_indexer(self.indexer, horizon, hull).gimbal_state,
+        return stalled(indexer_run(self.indexer, t, hull).gimbal_state,
                        self.gimbal_stalls)(t)
 
     def euler(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -161,14 +161,13 @@ class GimbalRates:
         """The angles (N, 2) rad a pipeline expects the encoders to read (less their
         offsets) at times t (N,) s, from the commands alone: the constant rates, or the
         indexer servo's response to its command on a fixed base (MuJoCo's servo without
-        the hull's excitation, once per process; the inner axis at rest). A stalled gimbal falls behind them (``estimators.screen.screen_gimbal``)."""
+        the hull's excitation, once per process; the inner axis at rest). A stalled
+        gimbal falls behind them (``estimators.screen.screen_gimbal``)."""
         t = np.asarray(t, dtype=float)
         if self.indexer is None:
             return self.gimbal_angles(t)
-        from models.indexer import cached_indexer
-        horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
-        return np.stack([cached_indexer(self.indexer, horizon).state(t)[0],
-                         np.zeros(t.size)], -1)
+        from models.indexer import indexer_run
+        return np.stack([indexer_run(self.indexer, t).state(t)[0], np.zeros(t.size)], -1)
 
 
 def gimbal_C_s_b(angles: np.ndarray) -> np.ndarray:

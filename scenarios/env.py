@@ -251,7 +251,7 @@ class AlignmentEnv(gym.Env):
         None without render_mode "rgb_array"."""
         if self.render_mode != "rgb_array":
             return None
-        from scenarios.render import SceneRenderer
+        from scenarios.render import SceneRenderer, error_line
 
         seed = getattr(self, "_episode_seed", 0)
         if self._scene is None or self._scene.seed != seed:    # the episode's own motion
@@ -263,8 +263,7 @@ class AlignmentEnv(gym.Env):
             run, k = self._run, self._run.k
             t = self.alignment_start_s + float(run.t[k] - run.t[0])
             error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k]) / arcmin
-            lines = [f"{self.estimator}: attitude error E {error[0]:+8.2f}'  "
-                     f"N {error[1]:+8.2f}'  U {error[2]:+8.2f}'"]
+            lines = [error_line(self.estimator, error)]
         return self._scene.frame(min(t, self._scene.duration), lines)
 
     def _write_video(self) -> None:

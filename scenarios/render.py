@@ -218,6 +218,12 @@ def overlay(image: np.ndarray, lines: list[str]) -> np.ndarray:
     return np.asarray(picture)
 
 
+def error_line(estimator: str, error_arcmin: np.ndarray) -> str:
+    """The overlay's line of an estimator's attitude error E, N, U (3,) arcmin."""
+    e = error_arcmin
+    return f"{estimator}: attitude error E {e[0]:+8.2f}'  N {e[1]:+8.2f}'  U {e[2]:+8.2f}'"
+
+
 @dataclass(frozen=True)
 class EstimatorTrack:
     """An estimator's attitude errors over an episode: epoch times t (K,) s of the
@@ -236,9 +242,7 @@ class EstimatorTrack:
         k = int(np.searchsorted(self.t, t, side="right")) - 1
         if k < 0:
             return [f"{self.name}: fine alignment starting"]
-        e = self.error_arcmin[k]
-        text = (f"{self.name}: attitude error E {e[0]:+8.2f}'  N {e[1]:+8.2f}'  "
-                f"U {e[2]:+8.2f}'")
+        text = error_line(self.name, self.error_arcmin[k])
         if self.diverged_at is not None and t >= self.diverged_at:
             text += "  DIVERGED"
         return [text]
