@@ -132,6 +132,11 @@ OUTLIER_MADS = 6.0
 this many robust standard deviations of the scenario's path residuals, both ways."""
 
 
+def _flags(kind: str, times) -> tuple[np.ndarray, np.ndarray]:
+    """Flags of one kind at times (s): kind (F,) str and time (F,) s."""
+    return np.array([kind] * len(times), dtype=str), np.array(times, dtype=float)
+
+
 def screen_gimbal(t: np.ndarray, encoder: np.ndarray, expected: np.ndarray,
                   resolution: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Stalls of a gimbal: encoder readings and the angles the commands give (both
@@ -142,8 +147,7 @@ def screen_gimbal(t: np.ndarray, encoder: np.ndarray, expected: np.ndarray,
     off (the stall and its catch-up are one stretch)."""
     deviation = (encoder - encoder[0]) - (expected - expected[0])
     stretches = _runs(np.any(np.abs(deviation) > STALL_TOLERANCE + resolution, axis=1))
-    times = [float(t[first]) for first, _ in stretches]
-    return np.array(["gimbal_stall"] * len(times), dtype=str), np.array(times, dtype=float)
+    return _flags("gimbal_stall", [t[first] for first, _ in stretches])
 
 
 def screen_gnss(t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
@@ -197,12 +201,12 @@ def screen_odometer(dt: float, distance: np.ndarray, dv_forward: np.ndarray
     (every dt s from 0) against the IMU's velocity increments along the carrier's forward
     axis (M,) m/s. Two consecutive windows of ``SLIP_WINDOW`` give a speed change; the
     IMU's increments between the windows' centres give the carrier's, plus gravity along
-    the forward axis (nearly constant: the run's median residual is taken off). Returns the flags'
-    kind (F,) ("odometer_slip") and time (F,) s: the first window end off by more than
+    the forward axis (nearly constant: the run's median residual is taken off). Returns
+    the flags' kind (F,) ("odometer_slip") and time (F,) s: the first window end off by more than
     ``SLIP_FLOOR`` (flags within ``SLIP_MERGE`` are one burst)."""
     n = max(2, 2 * int(round(SLIP_WINDOW / dt / 2)))      # even: the centres on boundaries
     if distance.size < 3 * n:
-        return np.array([], dtype=str), np.array([])
+        return _flags("odometer_slip", [])
     speed = (distance[n:] - distance[:-n]) / (n * dt)    # windows ending at n .. M
     change = speed[n:] - speed[:-n]                       # ends j = 2n .. M
     cumulative = np.r_[0.0, np.cumsum(dv_forward)]
@@ -217,4 +221,4 @@ def screen_odometer(dt: float, distance: np.ndarray, dv_forward: np.ndarray
         if j[first] * dt - last_end > SLIP_MERGE:
             times.append(float(j[first] * dt))
         last_end = j[last] * dt
-    return np.array(["odometer_slip"] * len(times), dtype=str), np.array(times, dtype=float)
+    return _flags("odometer_slip", times)

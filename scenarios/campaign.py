@@ -110,39 +110,35 @@ class GnssEpisode(PreparedEpisode):
 def simulate_screened(config: ScenarioConfig, seed: int):
     """``simulate`` one episode and screen its data as a pipeline must before any filter
     (``estimators.screen``): the IMU (repaired), the gimbal encoders against the
-    commands, the odometer against the IMU, the GNSS fixes. Returns the episode with the repaired increments on the
-    run's grid, and the flags {"fault_kind", "fault_time"} (time order) for the prepared
-    episode."""
+    commands, the odometer against the IMU, the GNSS fixes. Returns the episode with the
+    repaired increments on the run's grid, and the flags {"fault_kind", "fault_time"}
+    (time order) for the prepared episode."""
     from estimators.screen import screen_gimbal, screen_gnss, screen_imu, screen_odometer
     from scenarios.simulate import imu_rails, simulate
     episode = simulate(config, seed=seed)
     screened = screen_imu(episode.imu_t, episode.dtheta, episode.dv, config.imu_interval,
                           config.imu_samples, *imu_rails(config))
     episode = replace(episode, imu_t=screened.imu_t, dtheta=screened.dtheta, dv=screened.dv)
-    kinds, times = [screened.kind], [screened.start]
+    flags = [(screened.kind, screened.start)]
     if config.motion.has_gimbal:
         t = np.arange(config.imu_samples + 1) * config.imu_interval
-        flags = screen_gimbal(t, episode.gimbal_encoder, config.motion.expected_gimbal_angles(t),
-                              config.encoder.resolution)
-        kinds.append(flags[0])
-        times.append(flags[1])
+        flags.append(screen_gimbal(t, episode.gimbal_encoder,
+                                   config.motion.expected_gimbal_angles(t),
+                                   config.encoder.resolution))
     if "odo_distance" in episode.extra:
         forward = np.array([0.0, 1.0, 0.0])         # the body's forward axis (R, F, U)
         if config.motion.has_gimbal:                # in s: C_s_b^T e_F, mid-interval
             from models.world import gimbal_C_s_b
             enc = episode.gimbal_encoder
             forward = gimbal_C_s_b(0.5 * (enc[:-1] + enc[1:]))[:, 1, :]
-        flags = screen_odometer(config.imu_interval, episode.extra["odo_distance"],
-                                np.sum(episode.dv * forward, axis=-1))
-        kinds.append(flags[0])
-        times.append(flags[1])
+        flags.append(screen_odometer(config.imu_interval, episode.extra["odo_distance"],
+                                     np.sum(episode.dv * forward, axis=-1)))
     if "gps_t" in episode.extra:
         x = episode.extra
-        flags = screen_gnss(x["gps_t"], x["gps_lat"], x["gps_lon"], x["gps_h"], x["gps_v_n"],
-                            x["gps_valid"])
-        kinds.append(flags[0])
-        times.append(flags[1])
-    kind, time = np.concatenate(kinds), np.concatenate(times)
+        flags.append(screen_gnss(x["gps_t"], x["gps_lat"], x["gps_lon"], x["gps_h"],
+                                 x["gps_v_n"], x["gps_valid"]))
+    kind = np.concatenate([k for k, _ in flags])
+    time = np.concatenate([t for _, t in flags])
     order = np.argsort(time, kind="stable")
     return episode, {"fault_kind": kind[order], "fault_time": time[order]}
 

@@ -1,7 +1,6 @@
 """One episode of a scenario: MuJoCo truth, ideal or erroneous IMU increments, encoders."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -130,11 +129,12 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     reading = (truth.gimbal_angles.copy() if ideal or not config.motion.has_gimbal
                else encoder.measure(truth.gimbal_angles, offsets))
     extra = {}
-    imu_t, dtheta, dv = _faults(config, imu_t, dtheta, dv, extra)
+    imu_t, dtheta, dv, imu_faults = _faults(config, imu_t, dtheta, dv)
     if config.gps is not None:
         every = np.arange(0, truth.t.size, int(round(config.imu_rate / config.gps.rate)))
         extra.update(_gps_fixes(config, rngs["gps"], ideal, truth.t[every],
                                 antenna[0][every], antenna[1][every]))
+    _fault_record(config, imu_faults, extra)
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization,
                    extra=extra)
@@ -148,40 +148,41 @@ def imu_rails(config: ScenarioConfig) -> tuple[float, float]:
             full_scale(config.imu.accel.measurement_range, ACCEL_FULL_SCALE))
 
 
-def _faults(config: ScenarioConfig, imu_t, dtheta, dv, extra: dict):
-    """The scenario's [faults] injected into the increments. Their record, with the
-    gimbal stalls' (which the motion carries) and the GNSS outages and outliers and the
-    odometer slips of the sensors' tables, added to extra (when there is any)."""
-    faults = config.faults
-    record = {"fault_kind": [], "fault_start": [], "fault_end": []}
-    if faults.any:
-        imu_t, dtheta, dv, imu_record = faults.apply(imu_t, dtheta, dv, config.imu_interval,
-                                                     *imu_rails(config))
-        for key in record:
-            record[key] += list(imu_record[key])
+def _faults(config: ScenarioConfig, imu_t, dtheta, dv):
+    """The scenario's [faults] injected into the increments: imu_t, dtheta, dv and the
+    record rows (kind, start s, end s) of the IMU faults."""
+    if not config.faults.any:
+        return imu_t, dtheta, dv, []
+    imu_t, dtheta, dv, record = config.faults.apply(imu_t, dtheta, dv, config.imu_interval,
+                                                    *imu_rails(config))
+    return imu_t, dtheta, dv, list(zip(record["fault_kind"], record["fault_start"],
+                                       record["fault_end"]))
+
+
+def _fault_record(config: ScenarioConfig, imu_rows: list, extra: dict) -> None:
+    """The record of every fault, added to extra (fault_kind, fault_start, fault_end (F,)
+    when there is any): the IMU faults' rows, the gimbal stalls (to the end of their
+    catch-up), the GNSS outages and outliers (at the stamp of the fix each is put on:
+    extra's fixes) and the odometer slips."""
     from models.world import STALL_CATCH_UP
-    rows = [("gimbal_stall", start, start + (1.0 + STALL_CATCH_UP) * duration)
-            for start, duration in faults.gimbal_stalls]    # to the end of the catch-up
+    rows = list(imu_rows)
+    rows += [("gimbal_stall", start, start + (1.0 + STALL_CATCH_UP) * duration)
+             for start, duration in config.faults.gimbal_stalls]
     if config.gps is not None:
-        gps = config.gps
+        from sensors.gps import nearest_fix
         rows += [("gnss_outage", start, min(end, config.duration))
-                 for start, end in gps.outages if start < config.duration]
-        for when, *_ in gps.outliers:               # the stamp of the fix it is put on
-            # the nearest fix, the earlier on a tie (as sensors.gps.measure picks it)
-            stamp = math.ceil((when - gps.latency) * gps.rate - 0.5) / gps.rate + gps.latency
-            rows.append(("gnss_outlier", stamp, stamp))
+                 for start, end in config.gps.outages if start < config.duration]
+        stamps = extra["gps_t"]
+        rows += [("gnss_outlier", stamps[k], stamps[k]) for k in
+                 (nearest_fix(stamps, when) for when, *_ in config.gps.outliers)]
     if config.odometer is not None:
         rows += [("odometer_slip", start, start + duration)
                  for start, duration, _ in config.odometer.slips]
-    for kind, start, end in rows:
-        record["fault_kind"].append(kind)
-        record["fault_start"].append(float(start))
-        record["fault_end"].append(float(end))
-    if record["fault_kind"]:
-        extra.update({"fault_kind": np.array(record["fault_kind"], dtype=str),
-                      "fault_start": np.array(record["fault_start"], dtype=float),
-                      "fault_end": np.array(record["fault_end"], dtype=float)})
-    return imu_t, dtheta, dv
+    if rows:
+        kind, start, end = zip(*rows)
+        extra.update({"fault_kind": np.array(kind, dtype=str),
+                      "fault_start": np.array(start, dtype=float),
+                      "fault_end": np.array(end, dtype=float)})
 
 
 def _gps_fixes(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
@@ -300,7 +301,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
                                           truth.gimbal_angles)
     extra = {} if run.cross_track is None else {"cross_track": run.cross_track[idx]}
-    imu_t, dtheta, dv = _faults(config, truth.t[1:], dtheta, dv, extra)
+    imu_t, dtheta, dv, imu_faults = _faults(config, truth.t[1:], dtheta, dv)
     if config.odometer is not None:
         odo = config.odometer
         scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
@@ -314,6 +315,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     encoder = config.encoder
     reading = (truth.gimbal_angles.copy() if ideal or not motion.has_gimbal else
                encoder.measure(truth.gimbal_angles, encoder.draw_offsets(rngs["encoder"])))
+    _fault_record(config, imu_faults, extra)
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, gimbal_encoder=reading,
                    imu_realization=realization, extra=extra)

@@ -56,6 +56,12 @@ def heading_from_velocity(v_n: np.ndarray, velocity_sigma: float
     return yaw, sigma
 
 
+def nearest_fix(stamps: np.ndarray, when: float) -> int:
+    """Index of the fix stamped (stamps (N,) s) nearest time when (s), the earlier on a
+    tie: the fix an outlier at that time is put on."""
+    return int(np.argmin(np.abs(stamps - when)))
+
+
 def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
             v_n: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Fixes from the antenna truth (lat, lon rad; h m; v_n (N, 3) m/s ENU) at the times
@@ -70,7 +76,7 @@ def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: n
     d_up = spec.position_sigma_v * rng.standard_normal(n)
     v_meas = v_n + spec.velocity_sigma * rng.standard_normal((n, 3))
     for when, east, north, up in spec.outliers:
-        i = int(np.argmin(np.abs(t + spec.latency - when)))
+        i = nearest_fix(t + spec.latency, when)
         d_east[i] += east
         d_north[i] += north
         d_up[i] += up
