@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.config import ConfigError, ScenarioConfig, load_scenario
-from scenarios.simulate import episode_rngs, make_dynamic_world, make_world
+from scenarios.simulate import episode_rngs, make_dynamic_world, make_world, run_gimbal
 
 
 def check_size(size: tuple[int, int]) -> None:
@@ -89,6 +89,11 @@ class SceneRenderer:
         self._gimbal_qpos = getattr(self.world, "_gimbal_qpos", None)
         self._sea = model.hfield("sea").id if any(
             model.hfield(i).name == "sea" for i in range(model.nhfield)) else None
+        if self._sea is not None:       # the heightfield's points in the plane, m
+            rows, cols = model.hfield_nrow[self._sea], model.hfield_ncol[self._sea]
+            half_x, half_y = model.hfield_size[self._sea][:2]
+            self._sea_xy = np.meshgrid(np.linspace(-half_x, half_x, cols),
+                                       np.linspace(-half_y, half_y, rows))
 
     # --- posing ------------------------------------------------------------------------
     def pose(self, t: float) -> None:
@@ -105,11 +110,9 @@ class SceneRenderer:
             run = self._run
             k = int(np.clip(np.rint(t / run.dt), 0, run.t.size - 1))
             data.qpos[:] = run.qpos[k]          # every joint: wheels, steering, suspension
-            if self._gimbal_qpos is not None:
-                motion = run.gimbal or (self.config.motion.gimbal_state
-                                        if self.config.motion.has_gimbal else None)
-                if motion is not None:
-                    data.qpos[self._gimbal_qpos] = motion(np.array([t]))[0][0]
+            gimbal = run_gimbal(run, self.config.motion)
+            if self._gimbal_qpos is not None and gimbal is not None:   # with its stalls
+                data.qpos[self._gimbal_qpos] = gimbal(np.array([t]))[0][0]
         mujoco.mj_forward(self.model, data)
         if self._sea is not None:
             self._waves(t)
@@ -120,14 +123,10 @@ class SceneRenderer:
         import mujoco
 
         model, hid = self.model, self._sea
-        rows, cols = model.hfield_nrow[hid], model.hfield_ncol[hid]
-        half_x, half_y, top, _ = model.hfield_size[hid]
-        x, y = np.meshgrid(np.linspace(-half_x, half_x, cols), np.linspace(-half_y, half_y, rows))
-        crest = 0.5 * top
-        eta = self.world.sea_surface(t, x, y)
+        top = model.hfield_size[hid][2]                  # from -crest to +crest, m
+        eta = self.world.sea_surface(t, *self._sea_xy)
         start = model.hfield_adr[hid]
-        model.hfield_data[start:start + rows * cols] = np.clip(
-            (eta + crest) / top, 0.0, 1.0).ravel()
+        model.hfield_data[start:start + eta.size] = np.clip(eta / top + 0.5, 0.0, 1.0).ravel()
         for renderer in (self._renderer, self._inset):
             context = getattr(renderer, "_gl_context", None)   # MuJoCo's own, private
             if context is None or getattr(renderer, "_mjr_context", None) is None:

@@ -99,6 +99,15 @@ def make_dynamic_world(config: ScenarioConfig, rngs: dict[str, np.random.Generat
     raise ConfigError(f"world = {config.world!r} is not a dynamic world (car, ship-waves)")
 
 
+def run_gimbal(run, motion):
+    """The gimbal's motion (``GimbalMotion``) of a dynamic world's run: the one MuJoCo
+    simulated (an indexer's servo), else the motion's constant rates, with their stalls;
+    None without a gimbal."""
+    if run.gimbal is not None:
+        return run.gimbal
+    return motion.gimbal_state if motion.has_gimbal else None
+
+
 def episode_motion(config: ScenarioConfig, rng: np.random.Generator):
     """The prescribed ship's motion of one episode (its random linear phases drawn)."""
     motion = config.motion
@@ -271,9 +280,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
         run = SmoothRun(run)
     plane = TangentPlane(config.latitude, config.longitude, config.height)
     site, v_site = run.imu_trajectory()
-    gimbal_motion = run.gimbal
-    if gimbal_motion is None and motion.has_gimbal:
-        gimbal_motion = motion.gimbal_state
+    gimbal_motion = run_gimbal(run, motion)
     dtheta, dv = run.imu_increments(plane.omega_ie_t,
                                     gravity_t(plane, 0.5 * (site[:-1] + site[1:])),
                                     gimbal_motion)
