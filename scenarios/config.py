@@ -278,16 +278,23 @@ class ScenarioConfig:
             _check_range(f"motion.{name}", getattr(m, name) / deg, -360.0, 360.0, "deg/s")
 
 
+def scenario_path(name_or_path: str) -> Path:
+    """The TOML file of a shipped scenario's name, or the given .toml path; a one-line
+    ConfigError for an unknown name or a missing file."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml":
+        if not path.is_file():
+            raise ConfigError(f"scenario file {name_or_path} does not exist")
+        return path
+    if name_or_path not in scenario_names():
+        raise ConfigError(f"unknown scenario {name_or_path!r}; valid choices: "
+                          + ", ".join(scenario_names()))
+    return DATA_DIR / f"{name_or_path}.toml"
+
+
 def load_scenario(name_or_path: str) -> ScenarioConfig:
     """Load a shipped scenario by name, or a TOML file by path."""
-    path = Path(name_or_path)
-    if path.suffix == ".toml" and not path.is_file():
-        raise ConfigError(f"scenario file {name_or_path} does not exist")
-    if path.suffix != ".toml":
-        if name_or_path not in scenario_names():
-            raise ConfigError(f"unknown scenario {name_or_path!r}; valid choices: "
-                              + ", ".join(scenario_names()))
-        path = DATA_DIR / f"{name_or_path}.toml"
+    path = scenario_path(name_or_path)
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:

@@ -55,7 +55,8 @@ def campaign_settings(result: CampaignResult, command: list[str] | None = None) 
 
     exp = result.experiment
     config = exp.scenario_config()
-    source = config_source(exp.scenario)
+    from scenarios.config import scenario_path
+    source = scenario_path(exp.scenario).resolve()
     versions = {"python": platform.python_version()}
     for package in ("aligngym", "numpy", "scipy", "mujoco", "matplotlib"):
         try:
@@ -73,14 +74,6 @@ def campaign_settings(result: CampaignResult, command: list[str] | None = None) 
         "platform": f"{platform.system()} {platform.machine()}, {sys.implementation.name}",
         "versions": versions,
         "written_utc": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S")}
-
-
-def config_source(scenario: str) -> Path:
-    """The TOML file of a scenario (a shipped name, or a path as ``load_scenario`` takes
-    it)."""
-    from scenarios.config import DATA_DIR
-    path = Path(scenario)
-    return path.resolve() if path.suffix == ".toml" else DATA_DIR / f"{scenario}.toml"
 
 
 def write_outputs(result: CampaignResult, out_dir: str | Path | None,
