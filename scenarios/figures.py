@@ -214,7 +214,8 @@ def _twin(twins: dict | None, item) -> str:
 # Drawing
 # --------------------------------------------------------------------------------------
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (files only, headless)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -247,7 +248,7 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
     """fine_error_<start>.png: 3 rows (E, N, U) x 2 columns (the whole run; its last
     ``window`` s). Median line in each filter's colour and dash, 5-95 % shade, mean
     +-3 sigma dotted, diverged episodes faint with an x at their end."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(3, 2, figsize=(13, 9.5), sharex="col",
                              gridspec_kw={"width_ratios": (1.5, 1)})
     t_end = max(float(b.t[-1]) for b in bands)
@@ -316,7 +317,7 @@ def plot_final_errors(result, start: str, path: Path) -> Path:
     the episodes not diverged (box: quartiles, line: median, whiskers: 5-95 %, dots
     beyond); the diverged ones as black x, clamped to the panel (triangles) when off
     it."""
-    plt = _pyplot()
+    plt = pyplot()
     runs = [r for r in result.runs if r.start == start]
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.8))
     positions = np.arange(1, len(runs) + 1)
@@ -363,7 +364,7 @@ def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float
     """heading_convergence_<start>.png: per filter the fraction of all episodes whose
     heading has converged by time t (a step at each episode's convergence time); the
     curve ends below 1 by the diverged and the never converged episodes."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(12, 5))
     for i, cdf in enumerate(cdfs):
         times = np.concatenate([[0.0], cdf.times, [cdf.t_end]])
@@ -395,7 +396,7 @@ def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
     its order-statistics band (log scale; dashed: the expected value ``dof``). The grey
     band is for the most common episode count; a filter with another count has its own
     band edges as thin lines."""
-    plt = _pyplot()
+    plt = pyplot()
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
     fig, axes = plt.subplots(2, 1, figsize=(13, 8), sharex=True)
     counts = [c.episodes for c in curves if c.episodes]

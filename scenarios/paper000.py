@@ -441,9 +441,8 @@ def plot_sensor_estimates(result: CampaignResult, out) -> list:
     of the odometer scale error (ppm), the mounting pitch and heading (deg) and the gyro
     drifts (deg/h) with their +-3 sigma bounds, against the truth (dashed black); each
     panel zoomed on the tightest filter's final band."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from scenarios.figures import pyplot
+    plt = pyplot()
     from models.units import deg_per_h
 
     runs = [r for r in result.runs if r.start == "coarse"]

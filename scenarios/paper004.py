@@ -483,9 +483,8 @@ def format_tables(result: CampaignResult) -> str:
 def consistency_plot(result: CampaignResult, out) -> list:
     """consistency.png: per filter, the RMS heading error over the episodes against the
     filter's mean 3 sigma, in time."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from scenarios.figures import pyplot
+    plt = pyplot()
 
     fig, axes = plt.subplots(len(result.runs), 1, figsize=(8, 2.2 * len(result.runs)),
                              sharex=True, squeeze=False)
