@@ -194,7 +194,7 @@ class AlignmentEnv(gym.Env):
                           mis["accel_noise"] * 10.0 ** (2 * a[1])),
                  r_scale=mis["measurement"] * 10.0 ** (2 * a[2]))
         k = run.k
-        error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k])
+        error = self._attitude_error()
         reward = -min(float(np.linalg.norm(error / REWARD_SCALE)), REWARD_CAP)
         diverged = bool(run.filt.health.diverged[0])
         terminated = diverged
@@ -236,6 +236,11 @@ class AlignmentEnv(gym.Env):
         return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(
             np.float32)
 
+    def _attitude_error(self) -> np.ndarray:
+        """The estimator's attitude error E, N, U (3,) rad at the current epoch."""
+        k = self._run.k
+        return misalignment(self._episode.C_s_n_true[k], self._run.C_s_n[0, k])
+
     @property
     def alignment_start_s(self) -> float:
         """Scenario time (s) of the fine alignment's first epoch in this episode."""
@@ -262,7 +267,7 @@ class AlignmentEnv(gym.Env):
         if self._run is not None:
             run, k = self._run, self._run.k
             t = self.alignment_start_s + float(run.t[k] - run.t[0])
-            error = misalignment(self._episode.C_s_n_true[k], run.C_s_n[0, k]) / arcmin
+            error = self._attitude_error() / arcmin
             lines = [error_line(self.estimator, error)]
         return self._scene.frame(min(t, self._scene.duration), lines)
 
