@@ -17,8 +17,13 @@ alpha_E, alpha_N, alpha_U, and the symmetric velocity / bias sigmas are unchange
 
 Dynamics, static base, ALGORITHMS (3.5):
   alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie^n - C_b^p (eps + w_g)]
-  dv_dot_EN = [(I - C_p^n) f^p + C_p^n C_b^p ([nabla_x, nabla_y, 0] + w_a)]_EN
-with C_omega of ALGORITHMS (3.2) and f^p = C_b^p f~^b the computed specific force.
+  dv_dot_EN = [f^p - Rx(alpha_E) Ry(alpha_N) (f^p - C_b^p ([nabla_x, nabla_y, 0] + w_a))]_EN
+with C_omega of ALGORITHMS (3.2) and f^p = C_b^p f~^b the computed specific force. The
+velocity rows carry no heading: on a still base the true C_b^n (f~ - nabla) = g e3 and
+Rz(alpha_U)^T e3 = e3, so the form equals the general (I - C_p^n) f^p + C_p^n C_b^p nabla
+on the truth, but the general form's d(dv_dot)/d alpha_U = [e3 x C_p^n (f^p - C_b^p
+nabla)]_EN is nonzero wherever the estimated level is off, a heading measurement that is
+not there (it left the EKF 75-340' from the heading floor from 58.5 deg).
 Measurement: z = v_EN of the INS = [0_2x3, I_2, 0_2x5] x + v (the true velocity is 0).
 """
 from __future__ import annotations
@@ -350,7 +355,7 @@ def continuous_dynamics(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
 
     x (..., 10); C_b_p (..., 3, 3); f_p (..., 3) m/s^2 in p; omega_ie (..., 3) rad/s in n.
     alpha_dot = C_omega^-1 [(I - C_n^p) omega_ie - C_b^p eps],
-    dv_dot = [(I - C_p^n) f^p + C_p^n C_b^p [nabla_x, nabla_y, 0]]_EN.
+    dv_dot = [f^p - Rx(alpha_E) Ry(alpha_N) (f^p - C_b^p [nabla_x, nabla_y, 0])]_EN.
     Written out per component on contiguous arrays (the sigma-point filters evaluate
     it on 10^5 points per epoch); ``C_p_n`` and ``C_omega_inv`` are the matrix forms.
     """
@@ -385,8 +390,9 @@ def _dynamics(xs: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
     out[2] = -a / cE
     f = [f_p[..., i] for i in range(3)]
     d = [f[i] - (Cb[i][0] * xs[5] + Cb[i][1] * xs[6]) for i in range(3)]   # f - C_b^p nabla
-    out[3] = f[0] - (c00 * d[0] + c01 * d[1] + c02 * d[2])
-    out[4] = f[1] - (c10 * d[0] + c11 * d[1] + c12 * d[2])
+    # Rx(alpha_E) Ry(alpha_N) = [[cN, 0, sN], [sE sN, cE, -sE cN], [.]]: no alpha_U.
+    out[3] = f[0] - (cN * d[0] + sN * d[2])
+    out[4] = f[1] - (sEsN * d[0] + cE * d[1] - sEcN * d[2])
     return out
 
 
@@ -399,20 +405,39 @@ def continuous_jacobian(x: np.ndarray, C_b_p: np.ndarray, f_p: np.ndarray,
     Mi = C_omega_inv(alpha)
     dMi = _C_omega_inv_partials(alpha)
     dC = _C_p_n_partials(alpha, C)
+    L = level_rotation(alpha)
     w = omega_ie - _mv(Ct, omega_ie) - _mv(C_b_p, x[..., EPS])
     b = C_b_p[..., :, 0] * x[..., 5:6] + C_b_p[..., :, 1] * x[..., 6:7]
     r = b - f_p
     shape = np.broadcast_shapes(x.shape[:-1], C_b_p.shape[:-2], f_p.shape[:-1])
     A = np.zeros(shape + (N_STATES, N_STATES))
+    # d(Rx Ry)/d alpha_E = [e1 x] Rx Ry, d/d alpha_N = Rx Ry [e2 x], d/d alpha_U = 0.
+    dL = (_E1 @ L, L @ _E2)
     for j in range(3):
         d_alpha = -_mv(Mi, _mv(np.swapaxes(dC[j], -1, -2), omega_ie))
         if j < 2:
             d_alpha = d_alpha + _mv(dMi[j], w)
+            A[..., DV, j] = _mv(dL[j], r)[..., :2]
         A[..., ALPHA, j] = d_alpha
-        A[..., DV, j] = _mv(dC[j], r)[..., :2]
     A[..., ALPHA, EPS] = -Mi @ C_b_p
-    A[..., DV, NABLA] = (C @ C_b_p)[..., :2, :2]
+    A[..., DV, NABLA] = (L @ C_b_p)[..., :2, :2]
     return A
+
+
+_E1 = np.array([[0.0, 0, 0], [0, 0, -1], [0, 1, 0]])   # [e1 x]
+_E2 = np.array([[0.0, 0, 1], [0, 0, 0], [-1, 0, 0]])   # [e2 x]
+
+
+def level_rotation(alpha: np.ndarray) -> np.ndarray:
+    """Rx(alpha_E) Ry(alpha_N) (..., 3, 3) = Rz(alpha_U)^T C_p^n(alpha): the level part of
+    the Euler error, which maps the accelerometer's specific force in the velocity rows of
+    ALGORITHMS (3.5)."""
+    sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
+    sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
+    z = np.zeros_like(sE)
+    return np.stack([np.stack([cN, z, sN], -1),
+                     np.stack([sE * sN, cE, -sE * cN], -1),
+                     np.stack([-cE * sN, sE, cE * cN], -1)], -2)
 
 
 def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -542,7 +567,7 @@ class EulerLargeMisalignmentModel(FilterModel):
     Q_k = G q G^T T with q = diag(q_a, q_a, q_g, q_g, q_g) (PSDs), G = d(x_dot)/d(w_a,
     w_g) at the latest estimate passed to ``feedback`` (x0 at the start): gyro noise
     enters alpha_dot as -C_omega^-1 C_b^p w_g, horizontal accelerometer noise enters
-    dv_dot as [C_p^n C_b^p [w_ax, w_ay, 0]]_EN.
+    dv_dot as [Rx(alpha_E) Ry(alpha_N) C_b^p [w_ax, w_ay, 0]]_EN.
     """
 
     layout = LAYOUT
@@ -595,7 +620,7 @@ class EulerLargeMisalignmentModel(FilterModel):
         # Q_k = G q G^T T at the latest estimate (ALGORITHMS 0, "Units").
         alpha = self._x_lin[:, ALPHA]
         G = np.zeros((self.batch, N_STATES, 5))
-        G[:, DV, 0:2] = (C_p_n(alpha) @ C_b_p)[:, :2, :2]
+        G[:, DV, 0:2] = (level_rotation(alpha) @ C_b_p)[:, :2, :2]
         G[:, ALPHA, 2:5] = -C_omega_inv(alpha) @ C_b_p
         q = np.array([self.tuning.accel_psd * q_scale[1]] * 2
                      + [self.tuning.gyro_psd * q_scale[0]] * 3)

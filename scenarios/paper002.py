@@ -41,7 +41,9 @@ class Paper002Experiment(Experiment):
     """Settings (SPEC 4.4; assumed values marked). Angles in deg, times in s.
 
     gyro_bias_prior_deg_h: the filter's prior sigma of the gyro drift (the paper's
-    0.1 deg/h, ten times the true drift; ALGORITHMS 3.3 explains what it costs).
+    0.1 deg/h, ten times the true drift: it sets the filters' final heading sigma,
+    ~sigma_eps / (Omega cos L) = 30', and the size of what the large-angle transient
+    leaves on the unobservable heading/east-drift direction, 1-7' here).
     feedback_sigma_deg: the estimate is fed back into each filter's INS once its heading
     sigma is below this (ALGORITHMS 3.1; None: open loop throughout).
     heading_threshold_arcmin: heading convergence = first time after which the heading

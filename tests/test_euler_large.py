@@ -237,3 +237,28 @@ def test_feedback_keeps_the_estimate_and_zeroes_the_state():
     np.testing.assert_array_equal(x2[0, :5], 0.0)
     np.testing.assert_allclose(model.observation(0).z, v_before - x[0, 3:5], atol=1e-15)
     assert np.all(np.linalg.eigvalsh(P2[0]) > 0) and np.allclose(P2, P2.transpose(0, 2, 1))
+
+
+def test_process_noise_enters_as_the_biases_do():
+    """Q_k = G q G^T T with G the derivative of (3.5) with respect to the accelerometer
+    (x, y) and gyro biases at the linearisation point (central differences): white noise
+    enters where the bias does. At a level-perturbed, 58.5 deg estimate, the accelerometer
+    noise's heading dependence would show (Rx Ry C_b^p, not C_p^n C_b^p)."""
+    dtheta, dv = static_increments(10.0)
+    integrals = static_base_integrals(dtheta, dv, DT, LAT, H, 1.0)
+    C0 = (C_p_n(ALPHA0).T @ C_BN)[None]
+    tuning = Paper002Tuning()
+    model = EulerLargeMisalignmentModel(integrals, C0, tuning)
+    x, P = model.initial()
+    x[0, :3] = [0.9 * deg, -1.3 * deg, 58.5 * deg]
+    model.feedback(x, P, np.array([True]))
+    noise = model.transition(3).noise[0]
+    C_b_p, f_p, omega = (a[0] for a in model._args(3))
+    G = np.empty((10, 5))
+    for j, i in enumerate([5, 6, 7, 8, 9]):
+        e = np.zeros(10)
+        e[i] = 1e-6
+        G[:, j] = (continuous_dynamics(x[0] + e, C_b_p, f_p, omega)
+                   - continuous_dynamics(x[0] - e, C_b_p, f_p, omega)) / 2e-6
+    q = np.r_[[tuning.accel_psd] * 2, [tuning.gyro_psd] * 3]
+    np.testing.assert_allclose(noise, (G * q) @ G.T * model.T, rtol=1e-6, atol=1e-24)

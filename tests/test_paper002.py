@@ -1,22 +1,28 @@
-"""Paper 002 (static base, large azimuth error) checked against physics: the static
-self-alignment floors, convergence from 58.5 deg where a small-angle KF stalls, and the
-campaign's output contract; and paper 003's numbers unchanged by the framework."""
+"""Paper 002 (static base, large azimuth error) checked against physics: every default
+filter from the paper's 58.5 deg start reaches the static self-alignment floors of each
+episode, on ideal data (floor 0) and on the paper's sensors, with its NEES in the
+chi-square band when its priors match the simulated sensors; convergence where a
+small-angle KF stalls; and the campaign's output contract."""
 import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from estimators.alignment import run_alignment
-from estimators.euler_large import SmallAngleModel
+from estimators.euler_large import (PAPER002, C_p_n, EulerLargeMisalignmentModel,
+                                    SmallAngleModel, stack_integrals)
 from estimators.filters import make_filter
 from models.earth import OMEGA_IE, normal_gravity
-from models.units import arcmin, deg_per_h, ug
-from scenarios.campaign import analyse_run
+from models.units import arcmin, deg, deg_per_h, ug
+from scenarios.campaign import analyse_run, episode_seeds, prepare_all
 from scenarios.cli import main
 from scenarios.experiments import experiment
 from sensors.imu import ImuSpec, TriadSpec
+
+DEFAULT_FILTERS = experiment("paper002").default_filters
 
 FIXED_BIASES = ImuSpec(
     gyro=TriadSpec(bias_fixed=(0.01 * deg_per_h, -0.008 * deg_per_h, 0.006 * deg_per_h),
@@ -47,13 +53,134 @@ def static_floor(ep):
                      -eps_n[0] / (OMEGA_IE * np.cos(ep.lat)) + phi_N * np.tan(ep.lat)])
 
 
-def test_long_static_run_reaches_the_physical_floors():
-    """3600 s, the paper's P0/Q/R, EKF from a 5 deg azimuth error: every axis within 10 %
-    of the floor."""
-    exp, ep = episode(3600.0, 5.0)
+@pytest.fixture(scope="module")
+def long_static():
+    """One 3600 s episode with fixed biases (heading floor -3.6')."""
+    return episode(3600.0, 5.0)
+
+
+@pytest.mark.parametrize("azimuth_deg, heading_tol", [(5.0, 0.36), (58.5, 8.0)])
+def test_long_static_run_reaches_the_physical_floors(long_static, azimuth_deg, heading_tol):
+    """3600 s, the paper's P0/Q/R, the EKF. From a 5 deg azimuth error every axis within
+    10 % of the floor; from the paper's 58.5 deg the heading within 8' of its floor and
+    the level within 0.1'. With the old velocity equation's false heading sensitivity
+    (ALGORITHMS 3.5) the 58.5 deg run ended at +86.5'; what is left (4.6') is the EKF's
+    own transient (test_ideal_data_from_58_deg_every_filter_reaches_zero)."""
+    exp, ep = long_static
     floor = static_floor(ep)
-    final = run("ekf", exp, ep).error_n[0, -1]
-    np.testing.assert_allclose(final, floor, rtol=0.1)
+    start = np.array([*ep.start_error[:2], azimuth_deg * deg])
+    model = exp.model([ep], start[None])
+    final = run("ekf", exp, ep, model).error_n[0, -1]
+    np.testing.assert_allclose(final[:2], floor[:2], rtol=0.1, atol=0.1 * arcmin)
+    assert abs(final[2] - floor[2]) < heading_tol * arcmin, (final[2] - floor[2]) / arcmin
+
+
+def final_from_floor(name, exp, episodes, tuning=None):
+    """A default run of ``name`` on the episodes from their own start: (final error minus
+    the episode's floor (B, 3) rad, final sigma (B, 3) rad, final NEES (B,), diverged)."""
+    start = exp.start_errors(episodes)["large-azimuth"]
+    if tuning is None:
+        model = exp.model(episodes, start)
+    else:
+        C0 = np.swapaxes(C_p_n(start), -1, -2) @ np.stack([e.C_b_n_true[0] for e in episodes])
+        model = EulerLargeMisalignmentModel(stack_integrals([e.integrals for e in episodes]),
+                                            C0, tuning, feedback_below=5 * deg)
+    r = analyse_run(name, "x", run_alignment(make_filter(name), model), episodes, exp)
+    floors = np.stack([static_floor(e) if e.gyro_bias.any() else np.zeros(3)
+                       for e in episodes])
+    return r.error_n[:, -1] - floors, r.result.sigma_n[:, -1], r.nees[:, -1], r.diverged
+
+
+@pytest.fixture(scope="module")
+def ideal_episodes():
+    """Two 600 s episodes of error-free sensors (floor 0) from the paper's 58.5 deg start
+    (level errors drawn, 1 deg)."""
+    exp = experiment("paper002")
+    config = replace(exp.scenario_config(), imu=ImuSpec())
+    return exp, [exp.prepare_episode(s, config) for s in episode_seeds(5, 2)]
+
+
+# Measured on ideal data (arcmin of heading): ekf 4.6, ukf 6.6, sghkf-2 0.7, sghkf-4 2.3.
+@pytest.mark.parametrize("name", DEFAULT_FILTERS)
+def test_ideal_data_from_58_deg_every_filter_reaches_zero(ideal_episodes, name):
+    """Error-free sensors, the paper's P0/Q/R, 600 s from 58.5 deg: heading within 8' of 0,
+    level within 0.1', inside the filter's own 3 sigma, not diverged.
+
+    Why 8' and not 0: on a static base the heading and the east drift are one observable
+    combination (eps_E + Omega cos L alpha_U); whatever error the large-angle transient
+    leaves along the unobservable direction stays. Its size is each Gaussian filter's own
+    approximation of that transient and scales with the drift prior: the EKF's 4.6' at the
+    paper's 0.1 deg/h is 0.4' at 0.03 deg/h, 36' at 0.3 deg/h (and 0.02' from a 5 deg start,
+    1.4' from 40 deg), the same for any epoch from 0.1 to 2 s and any feedback threshold;
+    an EKF linearised at the truth leaves 0.7'. The false heading sensitivity of the old
+    velocity equation left 74-339' here."""
+    exp, episodes = ideal_episodes
+    d, sigma, _, diverged = final_from_floor(name, exp, episodes)
+    assert np.all(np.abs(d[:, 2]) < 8 * arcmin), d[:, 2] / arcmin
+    assert np.all(np.abs(d[:, 2]) < 3 * sigma[:, 2])
+    assert np.all(np.abs(d[:, :2]) < 0.1 * arcmin), d[:, :2] / arcmin
+    assert not diverged.any()
+
+
+@pytest.fixture(scope="module")
+def paper_episodes():
+    """Six 600 s episodes of the paper's sensors (gyro 0.01 deg/h bias and random drift,
+    accelerometer 50 ug), the paper's 58.5 deg start."""
+    exp = experiment("paper002")
+    return exp, prepare_all(exp, episode_seeds(0, 6), None, False, 1, progress=False)
+
+
+@pytest.mark.parametrize("name", DEFAULT_FILTERS)
+def test_paper_settings_reach_each_episodes_floors(paper_episodes, name):
+    """The paper's literal P0/Q/R: every episode's heading within 8' of its floor
+    -eps_E/(Omega cos L) + alpha_N tan L, its level within 0.1' of -nabla_N/g, nabla_E/g
+    (biases rotated to n). Measured: ekf 4.3-4.9', ukf 6.4-7.0', sghkf-2 0.5-1.1',
+    sghkf-4 2.0-2.5'."""
+    exp, episodes = paper_episodes
+    d, sigma, _, diverged = final_from_floor(name, exp, episodes)
+    assert np.all(np.abs(d[:, 2]) < 8 * arcmin), d[:, 2] / arcmin
+    assert np.all(np.abs(d[:, :2]) < 0.1 * arcmin), d[:, :2] / arcmin
+    assert not diverged.any()
+
+
+def test_the_best_filter_is_within_1_arcmin_of_the_floors(paper_episodes):
+    """sghkf-2 (the UKF with kappa = 3 - n): heading RMS from the floors below 1'."""
+    exp, episodes = paper_episodes
+    d = final_from_floor("sghkf-2", exp, episodes)[0]
+    assert np.sqrt(np.mean(d[:, 2] ** 2)) < 1 * arcmin
+
+
+MATCHED = replace(PAPER002, accel_bias_sigma=50 * ug, gyro_bias_sigma=0.01 * deg_per_h,
+                  accel_psd=(1 * ug) ** 2, measurement_sigma=0.001)
+"""The paper's tuning matched to the simulated sensors: bias priors 50 ug and 0.01 deg/h,
+accelerometer noise 1 ug/sqrt(Hz) (the sensors have none) and a 1 mm/s velocity sigma
+(the measured velocity is the INS's own, noise-free). The paper's 0.02 mg prior is smaller
+than its 50 ug bias, which puts the unobservable accelerometer bias outside its prior
+(final NEES 15-17 over 50 episodes against a band of 6.9-9.2); its 0.1 deg/h drift prior,
+0.05 mg/sqrt(Hz) and 0.1 m/s are conservative."""
+
+
+@pytest.mark.parametrize("name", [
+    "ekf", "sghkf-2", "sghkf-4",
+    pytest.param("ukf", marks=pytest.mark.xfail(strict=True, reason=(
+        "the kappa = 0 UKF gains information on the unobservable accelerometer biases "
+        "(sigma 31-38 ug from the 50 ug prior while their errors grow to 94-116 ug; "
+        "NEES 24 over 50 episodes); the EKF and the sparse grids keep the prior")))])
+def test_matched_priors_reach_the_floors_with_nees_in_the_chi_square_band(paper_episodes,
+                                                                          name):
+    """Priors and noise matching the sensors: every episode's heading within 1' of its
+    floor and within its own sigma (3.0'), and the mean final NEES over the six episodes
+    (8 states: Euler errors, accelerometer x, y and gyro biases) in its two-sided 95 %
+    chi-square band. Measured over 50 episodes: heading RMS from the floors 0.19-0.20',
+    NEES 8.4, 8.7, 8.3 (band 6.9-9.2); on these six 0.17', NEES 9.8-10.8 (band 5.1-11.5)."""
+    exp, episodes = paper_episodes
+    d, sigma, nees, diverged = final_from_floor(name, exp, episodes, MATCHED)
+    assert np.all(np.abs(d[:, 2]) < 1 * arcmin), d[:, 2] / arcmin
+    assert np.all(np.abs(d[:, 2]) < sigma[:, 2])
+    n = len(episodes)
+    lo, hi = chi2.ppf([0.025, 0.975], 8 * n) / n
+    assert lo < nees.mean() < hi, (nees.mean(), lo, hi)
+    assert not diverged.any()
 
 
 @pytest.fixture(scope="module")
