@@ -33,6 +33,7 @@ from scenarios.config import ConfigError, ScenarioConfig
 from sensors.imu import ImuTuning
 
 STARTS = ("coarse", "large")
+START_VELOCITIES = ("drawn", "odometer")
 DISTURBANCES = ("none", "slip", "all")
 SLIP_BURSTS = ((200.0, 0.3, 0.5), (350.0, 0.3, 0.5), (500.0, 0.3, 0.5))
 """--disturbance slip: a driven wheel spins for 0.3 s three times, the odometer counting
@@ -63,6 +64,14 @@ class Paper000Experiment(Experiment):
     is below it; disturbance: "none", "slip" (odometer slip bursts, ``SLIP_BURSTS``) or
     "all" (slips and a rough road); reference_settle: s after the stop before the static
     reference window; starts: the fine alignment's starts (``STARTS``).
+    start_velocity: the INS's velocity at the fine start. "drawn" (*assumed*; the paper
+    gives none): the true velocity plus a draw of P0's velocity sigma per axis, the error
+    the filter's P0 describes, as the attitude start is the truth turned by a drawn or
+    coarse error. "odometer": the odometer's velocity turned by the coarse attitude, all
+    an INS has at the end of the in-motion coarse window; its error |v| times the coarse
+    heading error (0.3-2.6 m/s) lies outside P0's 0.1 m/s, and no Gaussian P0 describes
+    it (it lies on a circle in the heading): rdghkf and ekf then end 12-24' off in
+    heading on ideal data where the drawn start leaves 1'.
     """
 
     scenario: str = "ring-road-odometer"
@@ -82,6 +91,7 @@ class Paper000Experiment(Experiment):
     reference_settle: float = 5.0
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 10.0
+    start_velocity: str = "drawn"
     default_filters: tuple[str, ...] = ("sgkf", "rdghkf", "ckf", "ekf")
     starts: tuple[str, ...] = STARTS
 
@@ -121,6 +131,9 @@ class Paper000Experiment(Experiment):
                               "and gimbal_inner_rate_deg_s must be 0")
         if not self.starts or set(self.starts) - set(STARTS):
             raise ConfigError(f"starts = {self.starts}; valid: " + ", ".join(STARTS))
+        if self.start_velocity not in START_VELOCITIES:
+            raise ConfigError(f"start_velocity = {self.start_velocity!r}; valid: "
+                              + ", ".join(START_VELOCITIES))
         if self.disturbance not in DISTURBANCES:
             raise ConfigError(f"--disturbance {self.disturbance!r}; valid: "
                               + ", ".join(DISTURBANCES))
@@ -174,8 +187,9 @@ class Paper000Experiment(Experiment):
         start_error = np.broadcast_to(np.asarray(start_error, float), (len(episodes), 3))
         config = self.scenario_config()
         feedback = None if self.feedback_sigma_deg is None else self.feedback_sigma_deg * deg
-        return OdometerLargeHeadingModel(model_inputs(episodes, start_error),
-                                         self.tuning(config), feedback_below=feedback)
+        inputs = model_inputs(episodes, start_error, self.start_velocity,
+                              self.velocity_sigma)
+        return OdometerLargeHeadingModel(inputs, self.tuning(config), feedback_below=feedback)
 
     def attitude_sigma(self):
         return np.deg2rad(self.attitude_sigma_deg)
@@ -316,20 +330,26 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
         lat=float(truth.lat[0]), h=float(truth.h[0]))
 
 
-def model_inputs(episodes: list[Paper000Episode], start_error: np.ndarray) -> OdometerInputs:
+def model_inputs(episodes: list[Paper000Episode], start_error: np.ndarray,
+                 start_velocity: str = "drawn", velocity_sigma: float = 0.1
+                 ) -> OdometerInputs:
     """The model's inputs; each INS starts from the true attitude turned by its Euler error
-    (E, N, U, rad: C_b^n' = C_p_n(phi)^T C_b^n), at the odometer's velocity turned by the
-    coarse attitude (whichever the start; its error, |v| times the coarse heading error,
-    is outside P0's velocity sigma of 0.1 m/s when that error is degrees: an open point)
-    and the known start position."""
+    (E, N, U, rad: C_b^n' = C_p_n(phi)^T C_b^n), the known start position and, by
+    ``start_velocity``, the true velocity plus a draw of ``velocity_sigma`` (m/s, per ENU
+    axis, from the episode's seed: "drawn") or the odometer's velocity turned by the
+    coarse attitude ("odometer"; see ``Paper000Experiment``)."""
     parts = []
     for e, phi in zip(episodes, start_error):
         C0 = np.swapaxes(C_p_n(phi), -1, -2) @ e.C_s_n_true[0]
+        if start_velocity == "drawn":
+            rng = np.random.default_rng(np.random.SeedSequence([e.seed, 3]))
+            v0 = e.true_v_n[0] + velocity_sigma * rng.standard_normal(3)
+        else:
+            v0 = e.coarse_C_b_n @ e.v0_body
         parts.append(OdometerInputs(
             t=e.t - e.t[0], imu_dt=e.imu_dt, dtheta=e.dtheta[None], dv=e.dv[None],
             distance=e.distance[None], C_m_b=np.eye(3)[None], lever_arm_b=e.lever_arm_b[None],
-            q_b_n0=dcm_to_quat(C0)[None], v_n0=(e.coarse_C_b_n @ e.v0_body)[None],
-            lat0=np.array([e.lat0]),
+            q_b_n0=dcm_to_quat(C0)[None], v_n0=v0[None], lat0=np.array([e.lat0]),
             lon0=np.array([e.lon0]), h0=np.array([e.h0])))
     return stack_episodes(parts, shared=("t", "imu_dt"))
 
