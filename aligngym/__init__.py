@@ -1,4 +1,5 @@
-"""aligngym's public API for users' own filters.
+"""aligngym: the testbed's one package (aligngym.models, .sensors, .estimators,
+.scenarios) and its public API for users' own filters.
 
 A filter here is an integration rule (``IntegrationRule``: the mean, covariance and
 cross-covariance of a map of a Gaussian; ``SigmaPointRule`` for point sets) times an
@@ -14,12 +15,38 @@ campaign (``run_campaign``), ``scenarios.evaluate`` and the env accept its name;
 command line, ``--filters module.path:factory`` does the same without code in this
 package (factory() returns a ``FilterEntry`` or an ``IntegrationRule``).
 """
-from estimators.adaptation import AdaptationContext, AdaptationPolicy, NoAdaptation
-from estimators.filters import FilterEntry, filter_names, register_filter
-from estimators.rules import IntegrationRule, Moments, SigmaPointRule
-from scenarios.campaign import run_campaign
-from scenarios.experiments import experiment, experiment_for
+from __future__ import annotations
 
-__all__ = ["AdaptationContext", "AdaptationPolicy", "FilterEntry", "IntegrationRule",
-           "Moments", "NoAdaptation", "SigmaPointRule", "experiment", "experiment_for",
-           "filter_names", "register_filter", "run_campaign"]
+import importlib
+from typing import Any
+
+_EXPORTS = {
+    "AdaptationContext": "aligngym.estimators.adaptation",
+    "AdaptationPolicy": "aligngym.estimators.adaptation",
+    "NoAdaptation": "aligngym.estimators.adaptation",
+    "FilterEntry": "aligngym.estimators.filters",
+    "filter_names": "aligngym.estimators.filters",
+    "register_filter": "aligngym.estimators.filters",
+    "IntegrationRule": "aligngym.estimators.rules",
+    "Moments": "aligngym.estimators.rules",
+    "SigmaPointRule": "aligngym.estimators.rules",
+    "run_campaign": "aligngym.scenarios.campaign",
+    "experiment": "aligngym.scenarios.experiments",
+    "experiment_for": "aligngym.scenarios.experiments",
+}
+"""Public name -> the module that defines it, imported on first use (PEP 562), so that
+``import aligngym.scenarios.cli`` answers --help without loading the estimators."""
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'aligngym' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -13,8 +13,8 @@ def aligngym_episode():
     scenario's); ideal: error-free sensors."""
     def make(scenario: str, seed: int = 0, duration: float | None = None,
              ideal: bool = False):
-        from scenarios.config import load_scenario
-        from scenarios.simulate import simulate
+        from aligngym.scenarios.config import load_scenario
+        from aligngym.scenarios.simulate import simulate
         config = load_scenario(scenario)
         if duration is not None:
             config = config.with_options(duration=duration)

@@ -19,9 +19,9 @@ def assert_alignment(filter: str, scenario: str, episodes: int = 5, seed: int = 
     (E, N) against level_rms_arcmin. A diverged episode fails the bound. Returns the
     measured {"heading_rms_arcmin", "level_rms_arcmin": [E, N], "diverged"}; raises
     AlignmentBoundExceeded with a per-episode table when a bound is exceeded."""
-    from models.units import arcmin
-    from scenarios.campaign import run_campaign
-    from scenarios.experiments import experiment_for
+    from aligngym.models.units import arcmin
+    from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.experiments import experiment_for
 
     exp = experiment_for(scenario, **settings)
     result = run_campaign(exp, episodes=episodes, seed=seed, filters=[filter],

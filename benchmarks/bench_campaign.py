@@ -10,8 +10,8 @@ import os
 import sys
 import time
 
-from scenarios.campaign import run_campaign
-from scenarios.experiments import experiment_for
+from aligngym.scenarios.campaign import run_campaign
+from aligngym.scenarios.experiments import experiment_for
 
 
 def main() -> None:

@@ -7,7 +7,7 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import scenarios
+from aligngym import scenarios
 
 
 def steps_per_second(estimator: str, steps: int = 599) -> tuple[float, float]:

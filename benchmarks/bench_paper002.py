@@ -31,12 +31,12 @@ import time
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from estimators.alignment import AlignmentRun
-from estimators.filters import make_filter
-from estimators.model import wrap_angle
-from models.units import arcmin, arcsec, deg
-from scenarios.campaign import episode_seeds, filter_threads, prepare_all, run_filter
-from scenarios.experiments import experiment as make_experiment
+from aligngym.estimators.alignment import AlignmentRun
+from aligngym.estimators.filters import make_filter
+from aligngym.estimators.model import wrap_angle
+from aligngym.models.units import arcmin, arcsec, deg
+from aligngym.scenarios.campaign import episode_seeds, filter_threads, prepare_all, run_filter
+from aligngym.scenarios.experiments import experiment as make_experiment
 
 FILTERS = ("ekf", "ukf", "sghkf-2", "sghkf-4")
 START = "large-azimuth"

@@ -10,9 +10,9 @@ import time
 import mujoco
 import numpy as np
 
-from models.world import ROLLOUT_THREADS
-from scenarios.config import load_scenario
-from scenarios.simulate import TRUTH_OVERSAMPLING, _ship_truth, make_world, simulate
+from aligngym.models.world import ROLLOUT_THREADS
+from aligngym.scenarios.config import load_scenario
+from aligngym.scenarios.simulate import TRUTH_OVERSAMPLING, _ship_truth, make_world, simulate
 
 
 def best_of(fn, repeat: int = 3) -> float:

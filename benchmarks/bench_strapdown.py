@@ -15,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from bench_simulate import best_of  # noqa: E402  (run from benchmarks/)
-from estimators.strapdown import StrapdownState, compensate, run_strapdown
-from models.attitude import cross, quat_cumprod, quat_mul, quat_rotate, rotvec_to_quat
-from models.earth import A, E2, OMEGA_IE, normal_gravity
-from scenarios.config import load_scenario
-from scenarios.simulate import simulate
+from aligngym.estimators.strapdown import StrapdownState, compensate, run_strapdown
+from aligngym.models.attitude import cross, quat_cumprod, quat_mul, quat_rotate, rotvec_to_quat
+from aligngym.models.earth import A, E2, OMEGA_IE, normal_gravity
+from aligngym.scenarios.config import load_scenario
+from aligngym.scenarios.simulate import simulate
 
 
 def numpy_loop(s: StrapdownState, phi: np.ndarray, dv_b: np.ndarray, T: float) -> np.ndarray:

@@ -8,8 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from scenarios.config import load_scenario
-from scenarios.simulate import simulate
+from aligngym.scenarios.config import load_scenario
+from aligngym.scenarios.simulate import simulate
 
 
 def main() -> None:

@@ -8,10 +8,11 @@ from __future__ import annotations
 import argparse
 import time
 
-import models.waves
-from models.units import arcsec
-from scenarios.config import load_scenario
-from scenarios.fidelity import fidelity_errors
+import aligngym.models.waves
+from aligngym import models
+from aligngym.models.units import arcsec
+from aligngym.scenarios.config import load_scenario
+from aligngym.scenarios.fidelity import fidelity_errors
 
 OPTIONS = (  # timestep (s), force period (steps), smooth truth
     (0.002, 5, False),     # before: wrench at 100 Hz, MuJoCo's discrete motion

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.filters import GaussianFilter
-from estimators.model import FilterModel
+from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.model import FilterModel
 
 
 @dataclass

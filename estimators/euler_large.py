@@ -32,13 +32,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.model import (FilterModel, Observation, StateLayout, Transition,
+from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
                               stack_episodes)
-from estimators.strapdown import compensate
-from models.attitude import (dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
+from aligngym.estimators.strapdown import compensate
+from aligngym.models.attitude import (dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
                              quat_rotate, quat_to_dcm, rotvec_to_quat)
-from models.earth import OMEGA_IE
-from models.units import deg, deg_per_h, mg
+from aligngym.models.earth import OMEGA_IE
+from aligngym.models.units import deg, deg_per_h, mg
 
 ALPHA, DV, NABLA, EPS = slice(0, 3), slice(3, 5), slice(5, 7), slice(7, 10)
 N_STATES = 10

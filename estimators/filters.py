@@ -12,12 +12,12 @@ from typing import Callable
 
 import numpy as np
 
-from estimators.adaptation import (AdaptationContext, AdaptationPolicy,
+from aligngym.estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                    ImprovedMultipleFadingFactors, MeasurementAxisFading, MeasurementFadingFactor,
                                    MultipleFadingFactors, NoAdaptation, RobustAdaptive,
                                    SelectiveWeights, SingleFadingFactor)
-from estimators.model import Observation, Transition, wrap_angle
-from estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
+from aligngym.estimators.model import Observation, Transition, wrap_angle
+from aligngym.estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
                               LinearizationRule, ReducedGaussHermiteRule,
                               SparseGridGaussHermiteRule, UnscentedRule)
 

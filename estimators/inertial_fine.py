@@ -19,13 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.alignment import FineResult, run_alignment
-from estimators.filters import GaussianFilter
-from estimators.model import (FilterModel, Observation, StateLayout, Transition,
+from aligngym.estimators.alignment import FineResult, run_alignment
+from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
                               stack_episodes)
-from estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
+from aligngym.estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
-from models.attitude import rotvec_to_dcm, skew
+from aligngym.models.attitude import rotvec_to_dcm, skew
 
 V, PHI, EPS, NABLA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 _I3 = np.eye(3)

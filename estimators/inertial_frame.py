@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.strapdown import body_rate_at, compensate
-from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rotvec_to_quat)
-from models.earth import OMEGA_IE, normal_gravity
-from models.world import gimbal_C_s_b, gimbal_rate_in_sensor  # noqa: F401  (re-exported)
+from aligngym.estimators.strapdown import body_rate_at, compensate
+from aligngym.models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rotvec_to_quat)
+from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.models.world import gimbal_C_s_b, gimbal_rate_in_sensor  # noqa: F401  (re-exported)
 
 
 # --- earth rotation in the inertial frame ------------------------------------------------
@@ -219,8 +219,8 @@ def velocity_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
     C_n^n0 from the fixes' w_in (trapezoid rule between fixes). Returns C_b^n at the last
     fix (3, 3) and the fit's RMS residual (m/s).
     """
-    from models.attitude import rotvec_to_dcm
-    from models.earth import earth_rate_n, gravity_n, transport_rate_n
+    from aligngym.models.attitude import rotvec_to_dcm
+    from aligngym.models.earth import earth_rate_n, gravity_n, transport_rate_n
 
     fix_index = np.rint(np.asarray(fix_index, dtype=float)).astype(int)
     if fix_index.size < 3 or fix_index[0] != 0 or np.any(np.diff(fix_index) <= 0):
@@ -273,8 +273,8 @@ def odometer_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
     pair_interval; C by SVD. The heading information is the earth's rotation only, as on
     a static base. Returns C_b^n at the window's end (3, 3) and the residual (m/s).
     """
-    from models.attitude import rotvec_to_dcm
-    from models.earth import earth_rate_n, gravity_n
+    from aligngym.models.attitude import rotvec_to_dcm
+    from aligngym.models.earth import earth_rate_n, gravity_n
 
     M = dtheta.shape[0]
     C_m_b = np.eye(3) if C_m_b is None else np.asarray(C_m_b, dtype=float)

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
-from estimators.strapdown import AidedInsInputs, body_rate_at
-from models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
-from models.earth import (C_n_e, OMEGA_IE, earth_rate_n, ecef_to_geodetic,
+from aligngym.estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
+from aligngym.estimators.strapdown import AidedInsInputs, body_rate_at
+from aligngym.models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
+from aligngym.models.earth import (C_n_e, OMEGA_IE, earth_rate_n, ecef_to_geodetic,
                           geodetic_to_ecef, normal_gravity, radii)
 
 LAYOUT = StateLayout({"position": slice(0, 3), "velocity": slice(3, 6),

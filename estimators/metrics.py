@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.attitude import dcm_to_euler, dcm_to_rotvec
+from aligngym.models.attitude import dcm_to_euler, dcm_to_rotvec
 
 
 def misalignment(C_true: np.ndarray, C_est: np.ndarray) -> np.ndarray:

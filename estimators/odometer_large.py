@@ -24,11 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.euler_large import C_p_n, reset_jacobian
-from estimators.model import FilterModel, Observation, StateLayout, Transition
-from estimators.strapdown import AidedInsInputs
-from models.attitude import dcm_to_quat, quat_to_dcm, skew
-from models.earth import (OMEGA_IE, earth_rate_n, metres_per_geodetic, radii,
+from aligngym.estimators.euler_large import C_p_n, reset_jacobian
+from aligngym.estimators.model import FilterModel, Observation, StateLayout, Transition
+from aligngym.estimators.strapdown import AidedInsInputs
+from aligngym.models.attitude import dcm_to_quat, quat_to_dcm, skew
+from aligngym.models.earth import (OMEGA_IE, earth_rate_n, metres_per_geodetic, radii,
                           transport_rate_n)
 
 LAYOUT = StateLayout({"misalignment": slice(0, 3), "velocity": slice(3, 6),

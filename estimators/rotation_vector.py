@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.model import FilterModel, Observation, StateLayout, Transition
-from estimators.loose_gps import GpsInsInputs
-from estimators.strapdown import body_rate_at
-from models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
-from models.earth import (earth_rate_n, gravity_n, metres_per_geodetic, radii,
+from aligngym.estimators.model import FilterModel, Observation, StateLayout, Transition
+from aligngym.estimators.loose_gps import GpsInsInputs
+from aligngym.estimators.strapdown import body_rate_at
+from aligngym.models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
+from aligngym.models.earth import (earth_rate_n, gravity_n, metres_per_geodetic, radii,
                           transport_rate_n)
 
 PHI, DV, DP, EPS, NABLA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12),

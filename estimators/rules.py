@@ -23,7 +23,7 @@ from math import comb
 
 import numpy as np
 
-from estimators.model import GaussianMap, wrap_angle
+from aligngym.estimators.model import GaussianMap, wrap_angle
 
 MAX_POINTS = 200_000
 """Largest tensor-product grid per episode (memory: points x episodes x n x 8 bytes)."""

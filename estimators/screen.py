@@ -159,7 +159,7 @@ def screen_gnss(t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
     fix, on some axis. Flags only: the filters meet the outliers (paper 001 compares how
     they do). Returns the flags' kind (F,) ("gnss_outage", "gnss_outlier") and time
     (F,) s, in time order."""
-    from models.earth import radii
+    from aligngym.models.earth import radii
     kinds = ["gnss_outage"] * len(_runs(~valid))
     times = [t[first] for first, _ in _runs(~valid)]
     both = valid[1:] & valid[:-1]

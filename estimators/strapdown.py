@@ -23,8 +23,8 @@ import numpy as np
 
 from numba import njit
 
-from models.attitude import cross
-from models.earth import _K_SOMIGLIANA, _M, A, E2, F, GAMMA_EQUATOR, OMEGA_IE
+from aligngym.models.attitude import cross
+from aligngym.models.earth import _K_SOMIGLIANA, _M, A, E2, F, GAMMA_EQUATOR, OMEGA_IE
 
 
 @dataclass

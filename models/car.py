@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from models.scene import (DRESSING, INSTRUMENTS, VISUAL, fmt, geom, imu_axes, mesh_asset,
+from aligngym.models.scene import (DRESSING, INSTRUMENTS, VISUAL, fmt, geom, imu_axes, mesh_asset,
                           quad_inset, resample_closed, ribbon, slab_mesh, torus_mesh)
-from models.world import IMU_SENSORS_MJCF, DiscreteRun, GimbalRates
+from aligngym.models.world import IMU_SENSORS_MJCF, DiscreteRun, GimbalRates
 
 G_LATERAL_MAX = 0.4 * 9.81
 """Largest steady lateral acceleration the controller is allowed to ask, m/s^2."""

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.attitude import euler_to_quat
-from models.units import deg
-from models.scene import INSTRUMENTS, geom, imu_axes
-from models.world import IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld, WorldSamples
+from aligngym.models.attitude import euler_to_quat
+from aligngym.models.units import deg
+from aligngym.models.scene import INSTRUMENTS, geom, imu_axes
+from aligngym.models.world import IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld, WorldSamples
 
 
 @dataclass(frozen=True)

@@ -14,11 +14,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from models.attitude import euler_to_quat
-from models.indexer import IndexerSpec, indexer_run
-from models.units import deg
-from models.scene import INSTRUMENTS, VISUAL, fmt, imu_axes, mesh_asset, torus_mesh
-from models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
+from aligngym.models.attitude import euler_to_quat
+from aligngym.models.indexer import IndexerSpec, indexer_run
+from aligngym.models.units import deg
+from aligngym.models.scene import INSTRUMENTS, VISUAL, fmt, imu_axes, mesh_asset, torus_mesh
+from aligngym.models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
                           stalled)
 
 

@@ -10,9 +10,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from models.attitude import cross, dcm_to_quat, quat_conj, quat_mul, quat_normalize, quat_rotate
-from models.earth import TangentPlane, gravity_n, normal_gravity
-from models.world import WorldSamples
+from aligngym.models.attitude import cross, dcm_to_quat, quat_conj, quat_mul, quat_normalize, quat_rotate
+from aligngym.models.earth import TangentPlane, gravity_n, normal_gravity
+from aligngym.models.world import WorldSamples
 
 
 @dataclass(frozen=True)

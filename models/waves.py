@@ -19,10 +19,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from models.indexer import IndexerMotion, IndexerSpec
-from models.ship import REFERENCE_HULL, ship_mjcf
-from models.units import deg
-from models.world import DiscreteRun, GimbalRates, stalled
+from aligngym.models.indexer import IndexerMotion, IndexerSpec
+from aligngym.models.ship import REFERENCE_HULL, ship_mjcf
+from aligngym.models.units import deg
+from aligngym.models.world import DiscreteRun, GimbalRates, stalled
 
 RHO_G = 1025.0 * 9.81
 WAVE_TIMESTEP = 0.002

@@ -28,7 +28,7 @@ import numpy as np
 from mujoco import rollout
 from scipy.interpolate import make_interp_spline
 
-from models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
+from aligngym.models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
                              rotvec_to_dcm, rotvec_to_quat, skew)
 
 
@@ -166,7 +166,7 @@ class GimbalRates:
         t = np.asarray(t, dtype=float)
         if self.indexer is None:
             return self.gimbal_angles(t)
-        from models.indexer import indexer_run
+        from aligngym.models.indexer import indexer_run
         return np.stack([indexer_run(self.indexer, t).state(t)[0], np.zeros(t.size)], -1)
 
 

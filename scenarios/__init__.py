@@ -7,7 +7,7 @@ plugin entry points, so registration is explicit here.
 """
 import gymnasium
 
-from scenarios.registry import SCENARIO_PAPER, env_id
+from aligngym.scenarios.registry import SCENARIO_PAPER, env_id
 
 
 # Scenarios with an alignment pipeline behind the env (ring-road-odometer's, paper 000,
@@ -19,11 +19,11 @@ for _name, _id in zip(ENV_SCENARIOS, ENV_IDS):
         # No max_episode_steps: the length is an option (episode_length / epoch_length
         # steps) and the env reports it as truncated itself; a registered limit would cut
         # longer episodes short, before their metrics and video.
-        gymnasium.register(id=_id, entry_point="scenarios.env:AlignmentEnv",
+        gymnasium.register(id=_id, entry_point="aligngym.scenarios.env:AlignmentEnv",
                            kwargs={"scenario": _name})
 
 
 def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0, **kwargs):
     """Per-episode metrics of an estimator run passively in the env (scenarios.env)."""
-    from scenarios.env import evaluate as _evaluate
+    from aligngym.scenarios.env import evaluate as _evaluate
     return _evaluate(env_id, estimator, episodes, seed, **kwargs)

@@ -19,13 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from estimators.alignment import FineResult, run_alignment
-from estimators.filters import UnknownFilter, filter_entry, make_filter
-from estimators.metrics import DivergenceRule, convergence_time, euler_error, misalignment
-from estimators.model import FilterModel, StateLayout
-from estimators.rules import MAX_POINTS
-from models.units import arcmin
-from scenarios.config import ConfigError, ScenarioConfig, load_scenario
+from aligngym.estimators.alignment import FineResult, run_alignment
+from aligngym.estimators.filters import UnknownFilter, filter_entry, make_filter
+from aligngym.estimators.metrics import DivergenceRule, convergence_time, euler_error, misalignment
+from aligngym.estimators.model import FilterModel, StateLayout
+from aligngym.estimators.rules import MAX_POINTS
+from aligngym.models.units import arcmin
+from aligngym.scenarios.config import ConfigError, ScenarioConfig, load_scenario
 
 AXES = ("phi_E", "phi_N", "phi_U")
 
@@ -113,8 +113,8 @@ def simulate_screened(config: ScenarioConfig, seed: int):
     commands, the odometer against the IMU, the GNSS fixes. Returns the episode with the
     repaired increments on the run's grid, and the flags {"fault_kind", "fault_time"}
     (time order) for the prepared episode."""
-    from estimators.screen import screen_gimbal, screen_gnss, screen_imu, screen_odometer
-    from scenarios.simulate import imu_rails, simulate
+    from aligngym.estimators.screen import screen_gimbal, screen_gnss, screen_imu, screen_odometer
+    from aligngym.scenarios.simulate import imu_rails, simulate
     episode = simulate(config, seed=seed)
     screened = screen_imu(episode.imu_t, episode.dtheta, episode.dv, config.imu_interval,
                           config.imu_samples, *imu_rails(config))
@@ -128,7 +128,7 @@ def simulate_screened(config: ScenarioConfig, seed: int):
     if "odo_distance" in episode.extra:
         forward = np.array([0.0, 1.0, 0.0])         # the body's forward axis (R, F, U)
         if config.motion.has_gimbal:                # in s: C_s_b^T e_F, mid-interval
-            from models.world import gimbal_C_s_b
+            from aligngym.models.world import gimbal_C_s_b
             enc = episode.gimbal_encoder
             forward = gimbal_C_s_b(0.5 * (enc[:-1] + enc[1:]))[:, 1, :]
         flags.append(screen_odometer(config.imu_interval, episode.extra["odo_distance"],

@@ -11,7 +11,7 @@ import sys
 import time
 from typing import NoReturn, Sequence
 
-from scenarios.registry import PAPERS, SCENARIO_PAPER, scenario_names
+from aligngym.scenarios.registry import PAPERS, SCENARIO_PAPER, scenario_names
 
 
 class _Parser(argparse.ArgumentParser):
@@ -65,7 +65,7 @@ def _seed(text: str) -> int:
 
 def _bench_epilog() -> str:
     """Papers, filters and scenarios ``bench`` knows (imports the filter catalogue)."""
-    from estimators.filters import filter_names
+    from aligngym.estimators.filters import filter_names
     return ("papers: " + ", ".join(PAPERS) + "\nfilters: " + ", ".join(filter_names())
             + "\nscenarios with a pipeline: "
             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
@@ -207,7 +207,7 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     reg.add_argument("--update", action="store_true",
                      help="store this run's metrics as the new baselines (default: compare)")
     reg.add_argument("--baselines", metavar="DIR",
-                     help="baseline directory (default: tests/baselines of the checkout)")
+                     help="baseline directory (default: the baselines shipped with the package)")
     reg.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
                      help="parallel processes (default: all cores)")
     return parser
@@ -236,7 +236,7 @@ def _check_writable(path_text: str, option: str) -> None:
     import os
     from pathlib import Path
 
-    from scenarios.config import ConfigError
+    from aligngym.scenarios.config import ConfigError
 
     path = Path(path_text)
     try:
@@ -252,10 +252,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from scenarios.campaign import run_campaign
-    from scenarios.config import ConfigError
-    from scenarios.experiments import experiment
-    from scenarios.report import format_tables, write_outputs
+    from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.config import ConfigError
+    from aligngym.scenarios.experiments import experiment
+    from aligngym.scenarios.report import format_tables, write_outputs
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
@@ -278,7 +278,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             settings[option] = value
     levels = [None]                  # one campaign; paper004 --swing all: one per level
     if settings.get("swing") == "all":
-        from scenarios.paper004 import SWING_LEVELS
+        from aligngym.scenarios.paper004 import SWING_LEVELS
         levels = list(SWING_LEVELS)
     episodes = args.episodes or DEFAULT_EPISODES[args.paper]
     summaries, elapsed = [], 0.0
@@ -302,7 +302,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             print(f"wrote {path}")
         summaries.append(result.summary())
     if len(levels) > 1 and args.json:
-        from scenarios.paper004 import merge_levels
+        from aligngym.scenarios.paper004 import merge_levels
         Path(args.json).write_text(json.dumps(merge_levels(summaries), indent=2))
         print(f"wrote {args.json}")
     print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s)"
@@ -312,10 +312,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from models.attitude import quat_to_euler
-    from models.units import deg
-    from scenarios.config import load_scenario
-    from scenarios.simulate import simulate
+    from aligngym.models.attitude import quat_to_euler
+    from aligngym.models.units import deg
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.simulate import simulate
 
     config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate)
     start = time.perf_counter()
@@ -334,9 +334,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_fidelity(args: argparse.Namespace) -> int:
-    from models.units import arcsec
-    from scenarios.config import load_scenario
-    from scenarios.fidelity import fidelity_errors
+    from aligngym.models.units import arcsec
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.fidelity import fidelity_errors
 
     config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate)
     err = fidelity_errors(config, seed=args.seed)
@@ -351,8 +351,8 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from scenarios.config import ConfigError, load_scenario
-    from scenarios.render import check_size, render_video
+    from aligngym.scenarios.config import ConfigError, load_scenario
+    from aligngym.scenarios.render import check_size, render_video
 
     try:
         size = tuple(int(v) for v in args.size.lower().split("x"))
@@ -362,7 +362,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         raise ConfigError(f"--size must be HxW in pixels, e.g. 480x640, got {args.size!r}")
     check_size(size)
     if args.estimator:
-        from estimators.filters import UnknownFilter, filter_entry
+        from aligngym.estimators.filters import UnknownFilter, filter_entry
         try:
             filter_entry(args.estimator)
         except UnknownFilter as exc:
@@ -386,7 +386,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from scenarios.html_report import write_report
+    from aligngym.scenarios.html_report import write_report
 
     start = time.perf_counter()
     path = write_report(args.dir)
@@ -396,7 +396,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_regress(args: argparse.Namespace) -> int:
-    from scenarios.regress import BASELINE_DIR, regress
+    from aligngym.scenarios.regress import BASELINE_DIR, regress
 
     papers = [p.strip() for p in args.papers.split(",") if p.strip()]
     passed, report = regress(papers, update=args.update,
@@ -413,7 +413,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:      # a usage error: the usage, and status 2
         parser.print_help()
         return 2
-    from scenarios.config import ConfigError
+    from aligngym.scenarios.config import ConfigError
 
     try:
         if args.command == "simulate":

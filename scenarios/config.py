@@ -7,18 +7,18 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-from models.car import VehicleMotion
-from models.indexer import IndexerSpec
-from models.platform import StaticPlatformMotion
-from models.ship import ShipSwayMotion
-from models.waves import WaveShipMotion
-from models.units import arcsec, deg
-from scenarios.registry import DATA_DIR, scenario_names  # noqa: F401  (re-exported)
-from sensors.encoder import GimbalEncoderSpec
-from sensors.faults import ImuFaults
-from sensors.gps import GPS_PRESETS, GpsSpec
-from sensors.imu import IMU_PRESETS, ImuSpec
-from sensors.odometer import ODOMETER_PRESETS, OdometerSpec
+from aligngym.models.car import VehicleMotion
+from aligngym.models.indexer import IndexerSpec
+from aligngym.models.platform import StaticPlatformMotion
+from aligngym.models.ship import ShipSwayMotion
+from aligngym.models.waves import WaveShipMotion
+from aligngym.models.units import arcsec, deg
+from aligngym.scenarios.registry import DATA_DIR, scenario_names  # noqa: F401  (re-exported)
+from aligngym.sensors.encoder import GimbalEncoderSpec
+from aligngym.sensors.faults import ImuFaults
+from aligngym.sensors.gps import GPS_PRESETS, GpsSpec
+from aligngym.sensors.imu import IMU_PRESETS, ImuSpec
+from aligngym.sensors.odometer import ODOMETER_PRESETS, OdometerSpec
 
 BIAS_FRAMES = ("sensor", "hull")
 WORLDS = ("car", "ship-prescribed", "ship-waves", "static-platform")

@@ -29,14 +29,14 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from estimators.filters import UnknownFilter, filter_entry, make_filter
-from estimators.alignment import AlignmentRun
-from estimators.metrics import misalignment
-from models.units import arcmin
-from scenarios.config import ConfigError
-from scenarios import campaign
-from scenarios.campaign import PreparedEpisode
-from scenarios.experiments import experiment_for
+from aligngym.estimators.filters import UnknownFilter, filter_entry, make_filter
+from aligngym.estimators.alignment import AlignmentRun
+from aligngym.estimators.metrics import misalignment
+from aligngym.models.units import arcmin
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios import campaign
+from aligngym.scenarios.campaign import PreparedEpisode
+from aligngym.scenarios.experiments import experiment_for
 
 SHARED_EPISODES = 16
 """Prepared episodes kept per process across env instances (vectorised envs and repeated
@@ -256,7 +256,7 @@ class AlignmentEnv(gym.Env):
         None without render_mode "rgb_array"."""
         if self.render_mode != "rgb_array":
             return None
-        from scenarios.render import SceneRenderer, error_line
+        from aligngym.scenarios.render import SceneRenderer, error_line
 
         seed = getattr(self, "_episode_seed", 0)
         if self._scene is None or self._scene.seed != seed:    # the episode's own motion
@@ -294,7 +294,7 @@ def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0,
              start_error: np.ndarray | str = "default", **env_kwargs) -> list[dict]:
     """Run the estimator passively (zero action) on the campaign's episode seeds and return
     the per-episode metrics table (the campaign's rows for the same seeds and start)."""
-    from scenarios.campaign import episode_seeds
+    from aligngym.scenarios.campaign import episode_seeds
 
     env = gym.make(env_id, estimator=estimator, **env_kwargs)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)

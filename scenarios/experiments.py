@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from scenarios.config import ConfigError
-from scenarios.registry import PAPERS, SCENARIO_PAPER  # noqa: F401  (re-exported)
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.registry import PAPERS, SCENARIO_PAPER  # noqa: F401  (re-exported)
 
 if TYPE_CHECKING:
-    from scenarios.campaign import Experiment
+    from aligngym.scenarios.campaign import Experiment
 
 
 
@@ -24,21 +24,21 @@ def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
     if setup == "paper" and paper != "paper003":
         raise ConfigError(f"--setup paper exists for paper003 only, not {paper}")
     if paper == "paper003":
-        from scenarios.paper003 import PAPER_SETUP, Paper003Experiment
+        from aligngym.scenarios.paper003 import PAPER_SETUP, Paper003Experiment
         cls = Paper003Experiment
         if setup == "paper":
             settings = {**PAPER_SETUP, **settings}
     elif paper == "paper000":
-        from scenarios.paper000 import Paper000Experiment
+        from aligngym.scenarios.paper000 import Paper000Experiment
         cls = Paper000Experiment
     elif paper == "paper001":
-        from scenarios.paper001 import Paper001Experiment
+        from aligngym.scenarios.paper001 import Paper001Experiment
         cls = Paper001Experiment
     elif paper == "paper002":
-        from scenarios.paper002 import Paper002Experiment
+        from aligngym.scenarios.paper002 import Paper002Experiment
         cls = Paper002Experiment
     elif paper == "paper004":
-        from scenarios.paper004 import Paper004Experiment
+        from aligngym.scenarios.paper004 import Paper004Experiment
         cls = Paper004Experiment
     else:
         raise ConfigError(f"unknown paper {paper!r}; valid choices: " + ", ".join(PAPERS))

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.strapdown import StrapdownState, run_strapdown
-from models.attitude import quat_angle
-from models.earth import radii
-from scenarios.config import ScenarioConfig
-from scenarios.simulate import simulate
+from aligngym.estimators.strapdown import StrapdownState, run_strapdown
+from aligngym.models.attitude import quat_angle
+from aligngym.models.earth import radii
+from aligngym.scenarios.config import ScenarioConfig
+from aligngym.scenarios.simulate import simulate
 
 
 def fidelity_errors(config: ScenarioConfig, seed: int = 0) -> dict[str, float]:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.units import arcmin
+from aligngym.models.units import arcmin
 
 AXIS_NAMES = ("East", "North", "Up")
 

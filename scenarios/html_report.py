@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.config import ConfigError
-from scenarios.figures import FIGURE_CAPTIONS, figure_caption
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.figures import FIGURE_CAPTIONS, figure_caption
 
 REQUIRED = ("settings.json", "results.csv", "tables.txt")
 """Files of a campaign directory the report reads (``write_outputs`` writes them)."""

@@ -19,18 +19,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.euler_large import C_p_n, true_state
-from estimators.inertial_frame import odometer_aided_alignment, static_coarse_alignment
-from estimators.metrics import euler_error, nees
-from estimators.model import stack_episodes, wrap_angle
-from estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
+from aligngym.estimators.euler_large import C_p_n, true_state
+from aligngym.estimators.inertial_frame import odometer_aided_alignment, static_coarse_alignment
+from aligngym.estimators.metrics import euler_error, nees
+from aligngym.estimators.model import stack_episodes, wrap_angle
+from aligngym.estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
                                        OdometerLargeHeadingModel, OdometerTuning)
-from models.attitude import dcm_to_quat, quat_to_dcm
-from models.earth import TangentPlane
-from models.units import arcmin, deg
-from scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
-from scenarios.config import ConfigError, ScenarioConfig
-from sensors.imu import ImuTuning
+from aligngym.models.attitude import dcm_to_quat, quat_to_dcm
+from aligngym.models.earth import TangentPlane
+from aligngym.models.units import arcmin, deg
+from aligngym.scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
+from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.sensors.imu import ImuTuning
 
 STARTS = ("coarse", "large")
 START_VELOCITIES = ("drawn", "odometer")
@@ -105,7 +105,7 @@ class Paper000Experiment(Experiment):
 
     @property
     def duration(self) -> float:
-        from scenarios.config import load_scenario
+        from aligngym.scenarios.config import load_scenario
         if self.fine_duration is None:
             return load_scenario(self.scenario).duration
         return self.coarse_start + self.coarse_duration + self.fine_duration
@@ -461,9 +461,9 @@ def plot_sensor_estimates(result: CampaignResult, out) -> list:
     of the odometer scale error (ppm), the mounting pitch and heading (deg) and the gyro
     drifts (deg/h) with their +-3 sigma bounds, against the truth (dashed black); each
     panel zoomed on the tightest filter's final band."""
-    from scenarios.figures import pyplot
+    from aligngym.scenarios.figures import pyplot
     plt = pyplot()
-    from models.units import deg_per_h
+    from aligngym.models.units import deg_per_h
 
     runs = [r for r in result.runs if r.start == "coarse"]
     if not runs:

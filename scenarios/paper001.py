@@ -18,18 +18,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.inertial_frame import static_coarse_alignment, velocity_aided_alignment
-from estimators.loose_gps import (ACCEL, GYRO, PHI, POSITION, VELOCITY,
+from aligngym.estimators.inertial_frame import static_coarse_alignment, velocity_aided_alignment
+from aligngym.estimators.loose_gps import (ACCEL, GYRO, PHI, POSITION, VELOCITY,
                                   GpsInsInputs, LooselyCoupledModel, LooseTuning, heading_cw,
                                   ins_start_at_fix)
-from estimators.metrics import misalignment, nees
-from estimators.model import stack_episodes, wrap_angle
-from models.attitude import quat_to_dcm, rotvec_to_dcm
-from models.earth import C_n_e, geodetic_to_ecef
-from models.units import arcmin, deg
-from scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
-from scenarios.config import ConfigError, ScenarioConfig
-from sensors.imu import ImuTuning
+from aligngym.estimators.metrics import misalignment, nees
+from aligngym.estimators.model import stack_episodes, wrap_angle
+from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
+from aligngym.models.earth import C_n_e, geodetic_to_ecef
+from aligngym.models.units import arcmin, deg
+from aligngym.scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
+from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.sensors.imu import ImuTuning
 
 START = "coarse"
 SCHEMES = ("lckf", "rakf", "swakf")
@@ -94,7 +94,7 @@ class Paper001Experiment(Experiment):
 
     @property
     def duration(self) -> float:
-        from scenarios.config import load_scenario
+        from aligngym.scenarios.config import load_scenario
         if self.fine_duration is None:
             return load_scenario(self.scenario).duration
         return self.coarse_window(load_scenario(self.scenario))[1] + self.fine_duration

@@ -17,17 +17,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.euler_large import (LAYOUT, PAPER002, C_p_n, EulerLargeMisalignmentModel,
+from aligngym.estimators.euler_large import (LAYOUT, PAPER002, C_p_n, EulerLargeMisalignmentModel,
                                     Paper002Tuning, StaticBaseIntegrals,
                                     stack_integrals, static_base_integrals, true_state)
-from estimators.filters import make_filter
-from estimators.metrics import nees
-from estimators.model import wrap_angle
-from models.attitude import quat_to_dcm
-from models.units import deg, deg_per_h
-from scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode,
+from aligngym.estimators.filters import make_filter
+from aligngym.estimators.metrics import nees
+from aligngym.estimators.model import wrap_angle
+from aligngym.models.attitude import quat_to_dcm
+from aligngym.models.units import deg, deg_per_h
+from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode,
                                 fine_summary, format_fine_table, simulate_screened)
-from scenarios.config import ConfigError, ScenarioConfig
+from aligngym.scenarios.config import ConfigError, ScenarioConfig
 
 START = "large-azimuth"
 STATE_COUNT = 10

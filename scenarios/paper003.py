@@ -13,20 +13,20 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.inertial_fine import (EPS, NABLA, PHI, FineInputs, FineTuning,
+from aligngym.estimators.inertial_fine import (EPS, NABLA, PHI, FineInputs, FineTuning,
                                       InertialFineModel, SwayAwareInertialModel,
                                       SwaySpectrum, fine_inputs, stack_inputs)
-from estimators.inertial_frame import (C_n_i, attitude_from_inertial, body_frame_integrals,
+from aligngym.estimators.inertial_frame import (C_n_i, attitude_from_inertial, body_frame_integrals,
                                        coarse_alignment_ib0)
-from estimators.metrics import misalignment, nees
-from models.attitude import quat_to_dcm, rotvec_to_dcm
-from models.units import arcmin, deg
-from models.world import gimbal_C_s_b
-from scenarios import campaign
-from scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
+from aligngym.estimators.metrics import misalignment, nees
+from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
+from aligngym.models.units import arcmin, deg
+from aligngym.models.world import gimbal_C_s_b
+from aligngym.scenarios import campaign
+from aligngym.scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
                                 fine_summary, simulate_screened)
-from scenarios.config import ConfigError, ScenarioConfig
-from sensors.imu import ImuTuning
+from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.sensors.imu import ImuTuning
 
 STARTS = ("mean", "max")
 SWAY_R_MARGIN = 1.25
@@ -60,7 +60,7 @@ def sway_velocity_std(config: ScenarioConfig) -> np.ndarray:
     if config.world == "ship-prescribed":
         std = sway_peak_velocity(config.motion) / np.sqrt(2.0)
     elif config.world == "ship-waves":
-        from models.waves import sway_centre_velocity
+        from aligngym.models.waves import sway_centre_velocity
 
         std = sway_centre_velocity(config.motion)[0]
     else:
@@ -84,7 +84,7 @@ def sway_spectrum(config: ScenarioConfig) -> SwaySpectrum:
     if config.world == "ship-prescribed":
         return SwaySpectrum(period=tuple(config.motion.linear_period), sigma=sigma,
                             damping=0.0)
-    from models.waves import heave_velocity_band
+    from aligngym.models.waves import heave_velocity_band
 
     peak_period, damping = heave_velocity_band(config.motion)
     return SwaySpectrum(period=(peak_period,) * 3, sigma=sigma, damping=float(damping))
@@ -103,7 +103,7 @@ def sway_measurement_sigma(config: ScenarioConfig, duration: float = 600.0
     if config.world == "ship-prescribed":
         peak = sway_peak_velocity(config.motion)
     else:
-        from models.waves import sway_centre_velocity
+        from aligngym.models.waves import sway_centre_velocity
 
         std, period = sway_centre_velocity(config.motion)
         peaks = np.maximum(duration / period, np.e)   # at least one peak: factor >= 1.4

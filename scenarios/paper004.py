@@ -30,18 +30,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators.inertial_frame import gimbal_rate_in_sensor, velocity_aided_alignment
-from estimators.loose_gps import ins_start_at_fix
-from estimators.metrics import convergence_time, misalignment, nees
-from estimators.model import stack_episodes
-from estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
+from aligngym.estimators.inertial_frame import gimbal_rate_in_sensor, velocity_aided_alignment
+from aligngym.estimators.loose_gps import ins_start_at_fix
+from aligngym.estimators.metrics import convergence_time, misalignment, nees
+from aligngym.estimators.model import stack_episodes
+from aligngym.estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsInputs,
                                         RotationVectorGnssModel, RotationVectorTuning)
-from models.attitude import quat_to_dcm, rotvec_to_dcm
-from models.units import deg, deg_per_h, mg
-from models.world import gimbal_C_s_b
-from scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
-from scenarios.config import ConfigError, ScenarioConfig
-from sensors.imu import ImuTuning
+from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
+from aligngym.models.units import deg, deg_per_h, mg
+from aligngym.models.world import gimbal_C_s_b
+from aligngym.scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
+from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.sensors.imu import ImuTuning
 
 SWING_LEVELS = {"mild": (5.0, 3.0, 2.0), "moderate": (10.0, 5.0, 3.0),
                 "severe": (22.5, 10.0, 5.0)}
@@ -134,7 +134,7 @@ class Paper004Experiment(Experiment):
 
     @property
     def duration(self) -> float:
-        from scenarios.config import load_scenario
+        from aligngym.scenarios.config import load_scenario
         if self.fine_duration is not None:
             return self.coarse_duration + self.fine_duration
         if self.case == "turntable":
@@ -421,7 +421,7 @@ def paper004_summary(result: CampaignResult) -> dict:
     LEVEL is the swing level (or "turntable")."""
     exp = result.experiment
     level = "turntable" if exp.case == "turntable" else exp.swing
-    from scenarios.config import load_scenario
+    from aligngym.scenarios.config import load_scenario
     motion = "waves" if load_scenario(exp.scenario).world == "ship-waves" else "prescribed"
     end = (float(result.runs[0].result.t[-1] + result.episodes[0].t[0]) if result.runs
            else exp.duration)
@@ -483,7 +483,7 @@ def format_tables(result: CampaignResult) -> str:
 def consistency_plot(result: CampaignResult, out) -> list:
     """consistency.png: per filter, the RMS heading error over the episodes against the
     filter's mean 3 sigma, in time."""
-    from scenarios.figures import pyplot
+    from aligngym.scenarios.figures import pyplot
     plt = pyplot()
 
     fig, axes = plt.subplots(len(result.runs), 1, figsize=(8, 2.2 * len(result.runs)),

@@ -1,7 +1,7 @@
 """Scenario regression: each paper's campaign with a fixed seed and a small episode count,
 compared metric by metric with a stored baseline (``aligngym regress``).
 
-A baseline (``tests/baselines/regress_<paper>.json``) holds the campaign's settings and
+A baseline (``scenarios/data/baselines/regress_<paper>.json``, package data) holds the campaign's settings and
 its metrics flattened to "path -> value" (the JSON summary's paths, plus each run's mean
 final NEES). Tolerances per kind of metric, and why:
 
@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.config import ConfigError
+from aligngym.scenarios.config import ConfigError
 
-BASELINE_DIR = Path(__file__).resolve().parents[1] / "tests" / "baselines"
+BASELINE_DIR = Path(__file__).resolve().parent / "data" / "baselines"
 
 CAMPAIGNS = {
     "paper000": {"episodes": 2, "seed": 5, "filters": ["rdghkf", "ekf"],
@@ -76,8 +76,8 @@ def flatten(tree: dict | list | float, prefix: str = "") -> dict[str, float]:
 
 def campaign_metrics(paper: str, workers: int | None = None) -> dict[str, float]:
     """Run a paper's regression campaign and flatten its results."""
-    from scenarios.campaign import run_campaign
-    from scenarios.experiments import experiment
+    from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.experiments import experiment
 
     settings = CAMPAIGNS[paper]
     result = run_campaign(experiment(paper, **settings.get("experiment", {})),
@@ -131,8 +131,9 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
     if not papers:
         raise ConfigError("--papers is empty; valid: " + ", ".join(CAMPAIGNS))
     if not Path(directory).is_dir() and not update:
-        raise ConfigError(f"no baseline directory {directory} (the baselines live in the "
-                          "source checkout's tests/baselines); pass --baselines DIR")
+        raise ConfigError(f"no baseline directory {directory} (the baselines ship "
+                          "with the package in aligngym/scenarios/data/baselines); pass "
+                          "--baselines DIR")
     unknown = [p for p in papers if p not in CAMPAIGNS]
     if unknown:
         raise ConfigError(f"--papers: {', '.join(unknown)} unknown; valid: "

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenarios.config import ConfigError, ScenarioConfig, load_scenario
-from scenarios.simulate import episode_rngs, make_dynamic_world, make_world, run_gimbal
+from aligngym.scenarios.config import ConfigError, ScenarioConfig, load_scenario
+from aligngym.scenarios.simulate import episode_rngs, make_dynamic_world, make_world, run_gimbal
 
 
 def check_size(size: tuple[int, int]) -> None:
@@ -186,7 +186,7 @@ class SceneRenderer:
         return ids
 
     def _status(self, t: float) -> str:
-        from models.attitude import dcm_to_euler
+        from aligngym.models.attitude import dcm_to_euler
         pitch, roll, yaw = np.degrees(dcm_to_euler(
             self.data.xmat[self._carrier].reshape(3, 3)[None])[0])
         # heading: clockwise from north (the PSINS yaw is counter-clockwise)
@@ -252,7 +252,7 @@ def estimator_track(scenario: str, estimator: str, seed: int, until: float
     """Run the estimator passively (``scenarios.env``) on the scenario's episode of this
     seed and record its attitude errors at its epochs up to time until (s). Returns them
     and the scenario as the pipeline runs it (an experiment may set its motion)."""
-    from scenarios.env import AlignmentEnv
+    from aligngym.scenarios.env import AlignmentEnv
 
     env = AlignmentEnv(scenario=scenario, estimator=estimator, cache_episodes=0)
     env.reset(seed=seed, options={"episode_seed": seed})
@@ -284,7 +284,7 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
 
     import imageio.v2 as imageio
 
-    from scenarios.registry import SCENARIO_PAPER
+    from aligngym.scenarios.registry import SCENARIO_PAPER
     if estimator and config.name not in SCENARIO_PAPER:
         raise ConfigError("--estimator needs a scenario with an alignment pipeline ("
                           + ", ".join(sorted(SCENARIO_PAPER)) + f"), not {config.name!r}")

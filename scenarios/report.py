@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from models.units import arcmin
-from scenarios.campaign import AXES, CampaignResult, episode_metrics
-from scenarios.figures import write_figures
+from aligngym.models.units import arcmin
+from aligngym.scenarios.campaign import AXES, CampaignResult, episode_metrics
+from aligngym.scenarios.figures import write_figures
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
@@ -55,7 +55,7 @@ def campaign_settings(result: CampaignResult, command: list[str] | None = None) 
 
     exp = result.experiment
     config = exp.scenario_config()
-    from scenarios.config import scenario_path
+    from aligngym.scenarios.config import scenario_path
     source = scenario_path(exp.scenario).resolve()
     versions = {"python": platform.python_version()}
     for package in ("aligngym", "numpy", "scipy", "mujoco", "matplotlib"):

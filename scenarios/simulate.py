@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from models.earth import TangentPlane
-from models.platform import StaticPlatformWorld
-from models.ship import ShipWorld
-from models.truth import NavigationTruth, imu_truth
-from models.world import PrescribedWorld
-from scenarios.config import ConfigError, ScenarioConfig
-from sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
+from aligngym.models.earth import TangentPlane
+from aligngym.models.platform import StaticPlatformWorld
+from aligngym.models.ship import ShipWorld
+from aligngym.models.truth import NavigationTruth, imu_truth
+from aligngym.models.world import PrescribedWorld
+from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
 
 # Truth is sampled at twice the IMU rate so that Simpson's rule integrates the increments.
 TRUTH_OVERSAMPLING = 2
@@ -89,12 +89,12 @@ def make_dynamic_world(config: ScenarioConfig, rngs: dict[str, np.random.Generat
     pictures: with the car's drawn track (visual only: the same motion)."""
     motion = config.motion
     if config.world == "car":
-        from models.car import CarWorld
+        from aligngym.models.car import CarWorld
         return CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
                         roughness_seed=int(rngs["motion"].integers(2 ** 31)),
                         draw_track=pictures)
     if config.world == "ship-waves":
-        from models.waves import WaveShipWorld
+        from aligngym.models.waves import WaveShipWorld
         return WaveShipWorld(motion, rngs["motion"])
     raise ConfigError(f"world = {config.world!r} is not a dynamic world (car, ship-waves)")
 
@@ -152,7 +152,7 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
 def imu_rails(config: ScenarioConfig) -> tuple[float, float]:
     """Full scales (gyro rad/s, accelerometer m/s^2) of the scenario's IMU: where a
     saturated axis sticks (``sensors.faults``)."""
-    from sensors.faults import ACCEL_FULL_SCALE, GYRO_FULL_SCALE, full_scale
+    from aligngym.sensors.faults import ACCEL_FULL_SCALE, GYRO_FULL_SCALE, full_scale
     return (full_scale(config.imu.gyro.measurement_range, GYRO_FULL_SCALE),
             full_scale(config.imu.accel.measurement_range, ACCEL_FULL_SCALE))
 
@@ -173,12 +173,12 @@ def _fault_record(config: ScenarioConfig, imu_rows: list, extra: dict) -> None:
     when there is any): the IMU faults' rows, the gimbal stalls (to the end of their
     catch-up), the GNSS outages and outliers (at the stamp of the fix each is put on:
     extra's fixes) and the odometer slips."""
-    from models.world import STALL_CATCH_UP
+    from aligngym.models.world import STALL_CATCH_UP
     rows = list(imu_rows)
     rows += [("gimbal_stall", start, start + (1.0 + STALL_CATCH_UP) * duration)
              for start, duration in config.faults.gimbal_stalls]
     if config.gps is not None:
-        from sensors.gps import nearest_fix
+        from aligngym.sensors.gps import nearest_fix
         rows += [("gnss_outage", start, min(end, config.duration))
                  for start, end in config.gps.outages if start < config.duration]
         stamps = extra["gps_t"]
@@ -199,7 +199,7 @@ def _gps_fixes(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
                ) -> dict[str, np.ndarray]:
     """The receiver's fixes (``sensors.gps.measure``; error-free when ideal) of the
     antenna's plane position (m) and velocity (m/s), (N, 3), at the fix times t (N,) s."""
-    from sensors import gps as gps_sensor
+    from aligngym.sensors import gps as gps_sensor
 
     plane = TangentPlane(config.latitude, config.longitude, config.height)
     lat, lon, h = plane.to_geodetic(antenna_r_t)
@@ -257,7 +257,7 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
     realization = config.imu.draw(rngs["imu_realization"])
     rotation = None
     if config.imu_bias_frame == "hull":
-        from models.world import gimbal_C_s_b
+        from aligngym.models.world import gimbal_C_s_b
         mid = 0.5 * (gimbal_angles[:-1] + gimbal_angles[1:])
         rotation = np.swapaxes(gimbal_C_s_b(mid), -1, -2)
     dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu, realization,
@@ -268,9 +268,9 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
 def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
     """A dynamic world (the car, the ship in waves; both at 500 Hz): MuJoCo's discrete
     steps, the exact discrete IMU, and the world's odometer, GPS and encoders."""
-    from models.attitude import euler_to_quat, quat_mul, quat_to_dcm
-    from models.truth import gravity_t, plane_truth
-    from models.world import SmoothRun
+    from aligngym.models.attitude import euler_to_quat, quat_mul, quat_to_dcm
+    from aligngym.models.truth import gravity_t, plane_truth
+    from aligngym.models.world import SmoothRun
 
     rngs = episode_rngs(seed)
     motion = config.motion

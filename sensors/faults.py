@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensors import number_rows
+from aligngym.sensors import number_rows
 
 GYRO_FULL_SCALE = math.radians(2000.0)
 """Full scale of a gyro without a finite measurement_range, rad/s (*assumed*, a common
@@ -52,7 +52,7 @@ class ImuFaults:
             if any(d <= 0.0 for _, d in rows):
                 raise ValueError(f"faults.{name}: each duration must be > 0 s")
             object.__setattr__(self, name, rows)
-        from models.world import STALL_CATCH_UP, STALL_RAMP
+        from aligngym.models.world import STALL_CATCH_UP, STALL_RAMP
         stalls = sorted(self.gimbal_stalls)
         if any(d < STALL_RAMP for _, d in stalls):
             raise ValueError(f"faults.gimbal_stalls: each duration must be >= {STALL_RAMP:g} s "

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensors import number_rows
+from aligngym.sensors import number_rows
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: n
     """Fixes from the antenna truth (lat, lon rad; h m; v_n (N, 3) m/s ENU) at the times
     t (N,) s the fixes describe. Stamps are t + latency; fixes inside an outage are NaN
     and invalid."""
-    from models.earth import radii
+    from aligngym.models.earth import radii
 
     n = t.size
     R_M, R_N = radii(lat)

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.signal import lfilter
 
-from models.units import deg_per_h, deg_per_sqrt_h, m_per_s_per_sqrt_h, mg, ug
+from aligngym.models.units import deg_per_h, deg_per_sqrt_h, m_per_s_per_sqrt_h, mg, ug
 
 __all__ = ["TriadSpec", "ImuSpec", "TriadRealization", "ImuRealization", "ImuTuning",
            "ideal_increments", "apply_imu_errors", "IMU_PRESETS", "gauss_markov_sigma"]

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensors import number_rows
+from aligngym.sensors import number_rows
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from models.earth import TangentPlane
-from models.units import deg
-from scenarios.config import load_scenario
+from aligngym.models.earth import TangentPlane
+from aligngym.models.units import deg
+from aligngym.scenarios.config import load_scenario
 
 
 @pytest.fixture(scope="session")

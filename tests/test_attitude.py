@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from models import attitude as att
+from aligngym.models import attitude as att
 
 
 @pytest.fixture

@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from scenarios.cli import main
+from aligngym.scenarios.cli import main
 
 REQUIRED = {"t": 1, "lat": 1, "lon": 1, "h": 1, "v_n": 2, "q_b_n": 2, "q_s_n": 2,
             "gimbal_angles": 2, "imu_t": 1, "dtheta": 2, "dv": 2}
@@ -13,7 +13,7 @@ REQUIRED = {"t": 1, "lat": 1, "lon": 1, "h": 1, "v_n": 2, "q_b_n": 2, "q_s_n": 2
 
 def run_cli(*args):
     """Run the installed entry point as a user would; returns (code, stdout, stderr)."""
-    proc = subprocess.run([sys.executable, "-m", "scenarios.cli", *args], capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "aligngym.scenarios.cli", *args], capture_output=True,
                           text=True)
     return proc.returncode, proc.stdout, proc.stderr
 
@@ -53,8 +53,8 @@ def test_velocity_increments_integrate_to_the_truth_with_normal_gravity(files):
     Coriolis and transport terms over the ideal file's 20 s, it is the truth's velocity
     change to 0.5 mm/s (measured 0.23 mm/s; a hard-coded 9.8 m/s^2 would be 32 mm/s off,
     the Coriolis term alone is 0.6 mm/s)."""
-    from models.attitude import quat_to_dcm
-    from models.earth import earth_rate_n, gravity_n, transport_rate_n
+    from aligngym.models.attitude import quat_to_dcm
+    from aligngym.models.earth import earth_rate_n, gravity_n, transport_rate_n
     f = files["ideal"]
     dv_b = f["dv"] + 0.5 * np.cross(f["dtheta"], f["dv"])
     dv_n = np.einsum("kij,kj->ki", quat_to_dcm(f["q_s_n"][:-1]), dv_b)
@@ -106,7 +106,7 @@ def test_bad_input_one_line_error(args, expected):
 
 
 def test_bad_scenario_file_names_field(tmp_path):
-    from scenarios.config import DATA_DIR
+    from aligngym.scenarios.config import DATA_DIR
     text = (DATA_DIR / "ship-sway-rotary.toml").read_text().replace(
         "latitude_deg = 40.0", "latitude_deg = 95.0")
     path = tmp_path / "bad.toml"
@@ -126,8 +126,9 @@ def test_imu_rate_option_changes_sample_count(tmp_path):
 def test_cli_module_loads_no_physics_or_estimators():
     """Help, version and option errors answer without MuJoCo, SciPy, numba or the
     estimators (imports stay inside the commands)."""
-    heavy = ("mujoco", "scipy", "numba", "matplotlib", "estimators", "models")
-    code = ("import sys, scenarios.cli; "
+    heavy = ("mujoco", "scipy", "numba", "matplotlib", "aligngym.estimators",
+             "aligngym.models")
+    code = ("import sys, aligngym.scenarios.cli; "
             f"print(sorted(m for m in {heavy!r} if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout

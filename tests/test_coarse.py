@@ -4,14 +4,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from estimators.inertial_frame import (attitude_from_inertial, body_frame_integrals,
+from aligngym.estimators.inertial_frame import (attitude_from_inertial, body_frame_integrals,
                                        coarse_alignment_ib0, gravity_velocity_i, gravity_i,
                                        static_coarse_alignment)
-from estimators.metrics import misalignment
-from models.attitude import euler_to_dcm, quat_to_dcm
-from models.earth import OMEGA_IE, earth_rate_n, normal_gravity
-from models.units import deg
-from scenarios.simulate import simulate
+from aligngym.estimators.metrics import misalignment
+from aligngym.models.attitude import euler_to_dcm, quat_to_dcm
+from aligngym.models.earth import OMEGA_IE, earth_rate_n, normal_gravity
+from aligngym.models.units import deg
+from aligngym.scenarios.simulate import simulate
 
 
 def ib0_error(config, lever_arm=None, seed=1):

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from models import earth
-from models.units import arcsec, deg
+from aligngym.models import earth
+from aligngym.models.units import arcsec, deg
 
 
 def test_normal_gravity_references():

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import scenarios
-from scenarios import ENV_IDS
-from scenarios.paper003 import run_campaign
+from aligngym import scenarios
+from aligngym.scenarios import ENV_IDS
+from aligngym.scenarios.paper003 import run_campaign
 
 SHORT = {"episode_length": 20.0}
 SHIP_ID = "aligngym/ShipSwayRotary-v0"
@@ -106,7 +106,7 @@ def test_observation_is_the_filters_own_not_the_truths():
     """The same sensor data with another truth (the attitude after the start turned by
     5 deg in heading): the same observations, other truth errors in info."""
     from dataclasses import replace
-    from models.attitude import rot_z
+    from aligngym.models.attitude import rot_z
 
     def rollout_with(episode=None):
         env = gym.make(SHIP_ID, estimator="kf", **SHORT)
@@ -182,7 +182,7 @@ def test_evaluate_equals_campaign():
                           experiment=scenarios.paper003.Paper003Experiment(fine_duration=60.0))
     rows = scenarios.evaluate(SHIP_ID, "sakf", episodes=2, seed=3,
                               start_error=result.start_errors["max"], episode_length=60.0)
-    from scenarios.report import tidy_rows
+    from aligngym.scenarios.report import tidy_rows
     campaign = [r for r in tidy_rows(result) if r["start"] == "max"]
     assert [r["seed"] for r in rows] == [r["seed"] for r in campaign]
     for env_row, camp_row in zip(rows, campaign):

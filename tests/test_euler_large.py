@@ -3,18 +3,18 @@
 import numpy as np
 import pytest
 
-from estimators.alignment import run_alignment
-from estimators.euler_large import (EulerLargeMisalignmentModel, Paper002Tuning, C_omega,
+from aligngym.estimators.alignment import run_alignment
+from aligngym.estimators.euler_large import (EulerLargeMisalignmentModel, Paper002Tuning, C_omega,
                                     C_omega_inv, C_p_n, SmallAngleModel,
                                     continuous_dynamics, continuous_jacobian,
                                     midpoint_jacobian, midpoint_step, rk4_jacobian,
                                     rk4_step, small_angle_dynamics, stack_ins_inputs,
                                     stack_integrals, state_vector, static_base_ins,
                                     static_base_integrals, true_state)
-from estimators.filters import make_filter
-from models.attitude import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
-from models.earth import OMEGA_IE, normal_gravity
-from models.units import arcmin, deg, deg_per_h, ug
+from aligngym.estimators.filters import make_filter
+from aligngym.models.attitude import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
+from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.models.units import arcmin, deg, deg_per_h, ug
 
 LAT, H, DT = 40 * deg, 0.0, 0.01
 C_BN = euler_to_dcm(np.array([0.3 * deg, -0.2 * deg, 30 * deg]))  # [pitch, roll, yaw]

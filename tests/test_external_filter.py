@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import aligngym
-from estimators.filters import FILTERS, UnknownFilter, filter_entry
-from scenarios.campaign import run_campaign
+from aligngym.estimators.filters import FILTERS, UnknownFilter, filter_entry
+from aligngym.scenarios.campaign import run_campaign
 
 
 class UserCubature(aligngym.SigmaPointRule):
@@ -42,7 +42,7 @@ def test_a_user_rule_equals_the_catalogues_in_a_campaign(user_filter):
 
 
 def test_a_user_rule_runs_in_the_env_and_evaluate(user_filter):
-    from scenarios.env import evaluate
+    from aligngym.scenarios.env import evaluate
     kwargs = {"episode_length": 60.0}
     ours = evaluate("aligngym/ShipSwayRotary-v0", user_filter, 1, seed=2, **kwargs)
     theirs = evaluate("aligngym/ShipSwayRotary-v0", "ckf", 1, seed=2, **kwargs)
@@ -55,7 +55,7 @@ def test_a_user_rule_runs_in_the_env_and_evaluate(user_filter):
 
 def test_module_factory_on_the_command_line(tmp_path, monkeypatch):
     """--filters module.path:factory, the module in a directory of the user's."""
-    from scenarios.cli import main
+    from aligngym.scenarios.cli import main
     (tmp_path / "my_filters.py").write_text(textwrap.dedent('''
         import numpy as np
         import aligngym
@@ -103,7 +103,7 @@ def test_an_unimportable_factory_is_a_one_line_error():
 def test_factories_may_return_a_rule_class_and_their_errors_are_one_line(tmp_path,
                                                                          monkeypatch):
     (tmp_path / "factories.py").write_text(textwrap.dedent('''
-        from estimators.rules import CubatureRule
+        from aligngym.estimators.rules import CubatureRule
 
         def rule_class():
             return CubatureRule

@@ -6,10 +6,10 @@ filters survive."""
 import numpy as np
 import pytest
 
-from estimators.screen import screen_imu
-from scenarios.campaign import simulate_screened
-from scenarios.config import ConfigError, load_scenario
-from scenarios.registry import DATA_DIR
+from aligngym.estimators.screen import screen_imu
+from aligngym.scenarios.campaign import simulate_screened
+from aligngym.scenarios.config import ConfigError, load_scenario
+from aligngym.scenarios.registry import DATA_DIR
 
 FAULTS = """
 [faults]
@@ -33,7 +33,7 @@ def test_every_fault_is_flagged_at_its_time_and_repaired(tmp_path, name):
     config = with_faults(tmp_path, name, 50.0)
     dt = config.imu_interval
     episode, flags = simulate_screened(config, seed=3)
-    from scenarios.simulate import simulate
+    from aligngym.scenarios.simulate import simulate
     raw = simulate(config, seed=3)
     record = dict(zip(raw.extra["fault_kind"], raw.extra["fault_start"]))
     assert set(record) == {"spike", "saturation", "gap", "nan"}
@@ -52,10 +52,10 @@ def test_repaired_data_keep_the_strapdown_on_the_truth(tmp_path):
     stays within 10 arcsec and 20 mm/s of the truth over 60 s on the swaying ship
     (measured 6.7 arcsec, 12.6 mm/s: 0.8 s of data are lost to the rail and the gap, and
     the cubic spline through the good rates bridges them; a linear one left 13')."""
-    from estimators.strapdown import StrapdownState, run_strapdown
-    from models.attitude import quat_angle
-    from models.units import arcsec
-    from scenarios.simulate import imu_rails, simulate
+    from aligngym.estimators.strapdown import StrapdownState, run_strapdown
+    from aligngym.models.attitude import quat_angle
+    from aligngym.models.units import arcsec
+    from aligngym.scenarios.simulate import imu_rails, simulate
     config = with_faults(tmp_path, "ship-sway-rotary", 60.0)
     raw = simulate(config, seed=1, ideal=True)
     screened = screen_imu(raw.imu_t, raw.dtheta, raw.dv, config.imu_interval,
@@ -81,9 +81,9 @@ def test_fault_free_scenarios_are_not_flagged(name):
 
 
 def test_a_campaign_counts_flagged_episodes_and_its_filters_survive(tmp_path):
-    from scenarios.campaign import run_campaign
-    from scenarios.experiments import experiment
-    from scenarios.report import format_tables
+    from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.experiments import experiment
+    from aligngym.scenarios.report import format_tables
     path = tmp_path / "static-faults.toml"
     path.write_text((DATA_DIR / "static-large-azimuth.toml").read_text() + FAULTS)
     runs = {}
@@ -166,8 +166,8 @@ def test_a_stalled_gimbal_stops_then_catches_up():
     stall's duration behind its schedule less the STALL_RAMP stop; after the catch-up
     the motion is the nominal one again; rates and accelerations are the derivatives of
     the angles (finite differences), continuous through the stop and the catch-up."""
-    from models.ship import ShipSwayMotion
-    from models.world import STALL_CATCH_UP, STALL_RAMP
+    from aligngym.models.ship import ShipSwayMotion
+    from aligngym.models.world import STALL_CATCH_UP, STALL_RAMP
     nominal = ShipSwayMotion()
     motion = ShipSwayMotion(gimbal_stalls=((100.0, 2.0),))
     t = np.arange(99.0, 100.0 + 2.0 * (1.0 + STALL_CATCH_UP) + 1.0, 1e-4)

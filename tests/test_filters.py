@@ -6,8 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from estimators.filters import FILTERS, UnknownFilter, make_filter
-from estimators.model import Observation, Transition
+from aligngym.estimators.filters import FILTERS, UnknownFilter, make_filter
+from aligngym.estimators.model import Observation, Transition
 
 
 def scalar_maps(batch=3, r=0.25):
@@ -141,7 +141,7 @@ def test_registry_and_unknown_names():
 
 
 def test_cli_unknown_filter_lists_known_names(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "scenarios.cli", "bench", "paper003",
+    proc = subprocess.run([sys.executable, "-m", "aligngym.scenarios.cli", "bench", "paper003",
                            "--filters", "kf,nope", "--episodes", "1", "--out", str(tmp_path)],
                           capture_output=True, text=True)
     assert proc.returncode != 0

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from models.earth import normal_gravity
-from models.units import arcmin
-from scenarios.campaign import episode_seeds, run_filter
-from scenarios.experiments import experiment
-from sensors.imu import ImuSpec
+from aligngym.models.earth import normal_gravity
+from aligngym.models.units import arcmin
+from aligngym.scenarios.campaign import episode_seeds, run_filter
+from aligngym.scenarios.experiments import experiment
+from aligngym.sensors.imu import ImuSpec
 
 FILTERS_000 = experiment("paper000").default_filters
 FILTERS_001 = experiment("paper001").default_filters

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from models.earth import OMEGA_IE, normal_gravity
-from models.units import arcmin, deg
-from scenarios.campaign import episode_seeds, run_filter
-from scenarios.experiments import experiment
-from scenarios.paper004 import MISALIGNMENTS
-from sensors.imu import ImuSpec
+from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.models.units import arcmin, deg
+from aligngym.scenarios.campaign import episode_seeds, run_filter
+from aligngym.scenarios.experiments import experiment
+from aligngym.scenarios.paper004 import MISALIGNMENTS
+from aligngym.sensors.imu import ImuSpec
 
 EXP3 = experiment("paper003")
 """Paper 003 as shipped: 120 s coarse (i_b0) alignment, 600 s fine, R from the sway."""

@@ -8,8 +8,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from scenarios.config import DATA_DIR, ConfigError, _build, scenario_names
-from scenarios.simulate import simulate
+from aligngym.scenarios.config import DATA_DIR, ConfigError, _build, scenario_names
+from aligngym.scenarios.simulate import simulate
 
 BASE = {name: tomllib.loads((DATA_DIR / f"{name}.toml").read_text())
         for name in scenario_names()}
@@ -116,7 +116,7 @@ def test_the_errors_a_new_user_met():
     raw = ship()
     del raw["world"]
     assert "missing key world" in rejected(raw)
-    from scenarios.config import load_scenario
+    from aligngym.scenarios.config import load_scenario
     try:
         load_scenario("no/such/file.toml")
     except ConfigError as exc:

@@ -11,10 +11,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import scenarios.campaign
-import scenarios.fidelity
-import scenarios.simulate
-from scenarios.cli import main
+import aligngym.scenarios.campaign
+import aligngym.scenarios.fidelity
+import aligngym.scenarios.simulate
+from aligngym import scenarios
+from aligngym.scenarios.cli import main
 
 
 class Accepted(Exception):

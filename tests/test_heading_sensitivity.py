@@ -30,19 +30,19 @@ velocity rows.
 import numpy as np
 import pytest
 
-from estimators import euler_large as el
-from estimators import rotation_vector as rv
-from estimators.inertial_fine import (PHI as PHI_I, V as V_I, FineInputs, FineTuning,
+from aligngym.estimators import euler_large as el
+from aligngym.estimators import rotation_vector as rv
+from aligngym.estimators.inertial_fine import (PHI as PHI_I, V as V_I, FineInputs, FineTuning,
                                       InertialFineModel, SwayAwareInertialModel,
                                       SwaySpectrum)
-from estimators.inertial_frame import C_n_i
-from estimators.loose_gps import (PHI as PHI_E, VELOCITY as V_E, GpsInsInputs,
+from aligngym.estimators.inertial_frame import C_n_i
+from aligngym.estimators.loose_gps import (PHI as PHI_E, VELOCITY as V_E, GpsInsInputs,
                                   LooselyCoupledModel, LooseTuning)
-from estimators.odometer_large import EpochQuantities
-from models.attitude import (dcm_to_quat, dcm_to_rotvec, euler_to_dcm, rot_x, rot_y, rot_z,
+from aligngym.estimators.odometer_large import EpochQuantities
+from aligngym.models.attitude import (dcm_to_quat, dcm_to_rotvec, euler_to_dcm, rot_x, rot_y, rot_z,
                              rotvec_to_dcm)
-from models.earth import C_n_e, OMEGA_IE, normal_gravity
-from models.units import arcmin, deg, deg_per_h, ug
+from aligngym.models.earth import C_n_e, OMEGA_IE, normal_gravity
+from aligngym.models.units import arcmin, deg, deg_per_h, ug
 
 LAT, LON, H = 40 * deg, 116 * deg, 0.0
 G = float(normal_gravity(LAT, H))
@@ -237,9 +237,9 @@ def test_paper004_classic_ukf_lands_off_the_floor_on_ideal_data(monkeypatch):
     velocity rows replaced by the still-base form C_b^p nabla + (I - C_n^p) g^n (the
     transformed rows: on a still base dv_ST = dv) ends 9' off (0.4 sigma). Measured over
     1200 s on four starts: 5-67' against 0.1-1.2' (UKF), 0.9-48' against 0.0-0.6' (EKF)."""
-    from estimators.alignment import run_alignment
-    from estimators.filters import make_filter
-    from estimators.metrics import misalignment
+    from aligngym.estimators.alignment import run_alignment
+    from aligngym.estimators.filters import make_filter
+    from aligngym.estimators.metrics import misalignment
 
     dt, S, K = 0.5, 2, 150
     start = np.array([3.0, -3.0, 50.0]) * deg

@@ -5,10 +5,10 @@ import allantools
 import numpy as np
 import pytest
 
-from models.truth import NavigationTruth
-from models.units import deg_per_h, deg_per_sqrt_h, ug
-from sensors.encoder import GimbalEncoderSpec
-from sensors.imu import (IMU_PRESETS, FLICKER_FLOOR_FACTOR, ImuSpec, ImuTuning, TriadSpec,
+from aligngym.models.truth import NavigationTruth
+from aligngym.models.units import deg_per_h, deg_per_sqrt_h, ug
+from aligngym.sensors.encoder import GimbalEncoderSpec
+from aligngym.sensors.imu import (IMU_PRESETS, FLICKER_FLOOR_FACTOR, ImuSpec, ImuTuning, TriadSpec,
                          apply_imu_errors, ideal_increments)
 
 

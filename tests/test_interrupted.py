@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from scenarios.regress import flatten
+from aligngym.scenarios.regress import flatten
 
 ARGS = ["bench", "paper002", "--episodes", "8", "--filters", "ekf", "--workers", "2",
         "--seed", "9"]

@@ -5,12 +5,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from estimators.inertial_frame import odometer_aided_alignment
-from estimators.metrics import misalignment
-from models.attitude import euler_to_dcm, quat_conj, quat_mul, quat_to_dcm
-from models.units import arcmin, deg
-from scenarios.config import ConfigError, load_scenario
-from scenarios.simulate import simulate
+from aligngym.estimators.inertial_frame import odometer_aided_alignment
+from aligngym.estimators.metrics import misalignment
+from aligngym.models.attitude import euler_to_dcm, quat_conj, quat_mul, quat_to_dcm
+from aligngym.models.units import arcmin, deg
+from aligngym.scenarios.config import ConfigError, load_scenario
+from aligngym.scenarios.simulate import simulate
 
 
 @pytest.fixture(scope="module")
@@ -77,10 +77,10 @@ def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = Tru
     the Euler error phi0 (rad); the true mounting given as nominal (or the identity,
     nominal_mount False: the mounting states carry it); constant drift eps (rad/s) and
     bias nabla (m/s^2) added to the increments."""
-    from estimators.euler_large import C_p_n
-    from estimators.odometer_large import (OdometerInputs, OdometerLargeHeadingModel,
+    from aligngym.estimators.euler_large import C_p_n
+    from aligngym.estimators.odometer_large import (OdometerInputs, OdometerLargeHeadingModel,
                                            OdometerTuning)
-    from models.attitude import dcm_to_quat
+    from aligngym.models.attitude import dcm_to_quat
     config, tr, dt = ring.config, ring.truth, ring.config.imu_interval
     odo, motion = config.odometer, config.motion
     C_m_b = (euler_to_dcm(np.array([odo.mounting_pitch, 0.0, odo.mounting_heading])).T
@@ -122,8 +122,8 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
     heading_deg, nominal, sensor_errors = CASES[case]
     eps = np.array([1e-5, -0.7e-5, 0.5e-5]) if sensor_errors else np.zeros(3)
     nabla = np.array([1e-2, -0.5e-2, 0.8e-2]) if sensor_errors else np.zeros(3)
-    from estimators.euler_large import true_state
-    from scenarios.paper000 import _rear_path
+    from aligngym.estimators.euler_large import true_state
+    from aligngym.scenarios.paper000 import _rear_path
     model, i0, S = _model_on_truth(ring, 40.0, 15, [0.0, 0.0, heading_deg * deg],
                                    nominal_mount=nominal, eps=eps, nabla=nabla)
     odo = ring.config.odometer
@@ -162,7 +162,7 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
 def test_strong_tracking_factor_is_one_when_innovations_match_their_prediction():
     """ALGORITHMS 4.3's oracle for the derivative-free form: V_k = P_zz0, beta = 1 ->
     lambda = 1; twice the predicted variance -> lambda > 1."""
-    from estimators.adaptation import AdaptationContext, SingleFadingFactor
+    from aligngym.estimators.adaptation import AdaptationContext, SingleFadingFactor
     P = np.array([[[2.0, 0.3], [0.3, 1.0]]])
     Q = np.array([[[0.1, 0.0], [0.0, 0.2]]])
     H = np.array([[[1.0, 0.5]]])
@@ -184,8 +184,8 @@ def test_strong_tracking_factor_is_one_when_innovations_match_their_prediction()
 def test_reduced_gh_is_the_kf_when_nothing_depends_on_the_heading():
     """A, b, h independent of phi_U: the reduced-dimension rule gives the linear moments
     exactly (ALGORITHMS 4.2's second oracle)."""
-    from estimators.model import GaussianMap
-    from estimators.rules import ReducedGaussHermiteRule
+    from aligngym.estimators.model import GaussianMap
+    from aligngym.estimators.rules import ReducedGaussHermiteRule
     rng = np.random.default_rng(5)
     F = rng.standard_normal((1, 4, 4))
     g = rng.standard_normal((1, 4))
@@ -243,8 +243,8 @@ def short_ring(tmp_path, radius: float = 100.0, extra: str = "", stop: float = 2
 def slip_campaign(tmp_path_factory):
     """2 episodes of a 195 s drive with a stop and 65 s still, an odometer slip burst at
     120 s (0.5 m in 0.3 s), the four filters from the coarse start."""
-    from scenarios.campaign import run_campaign
-    from scenarios.paper000 import Paper000Experiment
+    from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.paper000 import Paper000Experiment
     path = short_ring(tmp_path_factory.mktemp("p000"), extra="slips = [[120.0, 0.3, 0.5]]")
     exp = Paper000Experiment(scenario=path, coarse_duration=45.0, starts=("coarse",))
     return run_campaign(exp, episodes=2, seed=4, workers=2, progress=False)
@@ -276,7 +276,7 @@ def test_stop_reference_is_the_static_alignment_after_the_stop(slip_campaign):
     construction), and that error is the static alignment's physics: level ~
     accelerometer bias / g, heading ~ east drift / (Omega cos L) (minutes of arc for
     this FOG)."""
-    from models.earth import OMEGA_IE
+    from aligngym.models.earth import OMEGA_IE
     summary = slip_campaign.summary()["fine"]
     offsets = [np.subtract(s["vs_reference"]["mean_arcmin"], s["vs_truth"]["mean_arcmin"])
                for s in summary.values()]
@@ -293,8 +293,8 @@ def test_heading_and_accelerometer_biases_need_the_turns(tmp_path):
     14.6'; the straight run still gyrocompasses on the FOG's earth-rate signal, ALGORITHMS
     1.2); the horizontal accelerometer biases move off their prior only with the turns
     (to 0.91 of it, against 0.99)."""
-    from scenarios.campaign import run_campaign
-    from scenarios.paper000 import Paper000Experiment
+    from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.paper000 import Paper000Experiment
     sigma = {}
     for radius in (100.0, 20000.0):
         path = short_ring(tmp_path, radius, stop=400.0, duration=400.0)
@@ -310,7 +310,7 @@ def test_heading_and_accelerometer_biases_need_the_turns(tmp_path):
 
 
 def test_paper000_bad_input(tmp_path):
-    from scenarios.paper000 import Paper000Experiment
+    from aligngym.scenarios.paper000 import Paper000Experiment
     path = short_ring(tmp_path)
     with pytest.raises(ConfigError, match=r"the coarse window \[150, 210\] s must lie in "
                                           r"the driving phase"):

@@ -7,22 +7,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimators.adaptation import (AdaptationContext, RobustAdaptive, SelectiveWeights,
+from aligngym.estimators.adaptation import (AdaptationContext, RobustAdaptive, SelectiveWeights,
                                    adaptive_factor, igg3_weights)
-from estimators.filters import GaussianFilter
-from estimators.loose_gps import (HEADING, GpsInsInputs, LooselyCoupledModel, LooseTuning,
+from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.loose_gps import (HEADING, GpsInsInputs, LooselyCoupledModel, LooseTuning,
                                   heading_cw, heading_row)
-from estimators.model import Observation, Transition
-from estimators.rules import LinearizationRule
-from estimators.adaptation import NoAdaptation
-from models.attitude import dcm_to_quat, euler_to_dcm, quat_to_dcm, rotvec_to_dcm, skew
-from models.earth import C_n_e, geodetic_to_ecef
-from models.units import deg
-from scenarios.campaign import run_campaign
-from scenarios.config import ConfigError, load_scenario
-from scenarios.paper001 import Paper001Experiment
-from scenarios.simulate import simulate
-from sensors.gps import heading_from_velocity
+from aligngym.estimators.model import Observation, Transition
+from aligngym.estimators.rules import LinearizationRule
+from aligngym.estimators.adaptation import NoAdaptation
+from aligngym.models.attitude import dcm_to_quat, euler_to_dcm, quat_to_dcm, rotvec_to_dcm, skew
+from aligngym.models.earth import C_n_e, geodetic_to_ecef
+from aligngym.models.units import deg
+from aligngym.scenarios.campaign import run_campaign
+from aligngym.scenarios.config import ConfigError, load_scenario
+from aligngym.scenarios.paper001 import Paper001Experiment
+from aligngym.scenarios.simulate import simulate
+from aligngym.sensors.gps import heading_from_velocity
 
 SHORT = """name = "figure8-gps-short"
 paper = "001"
@@ -213,7 +213,7 @@ def test_error_model_propagates_errors_as_the_strapdown_does(ideal_motion):
     r, v, C = _ins_ecef(reference)
     perturbed_inputs = _inputs(ideal_motion, 70.0, seconds)
     C_wrong = rotvec_to_dcm(-x0[6:9]) @ C[0]          # C~ = (I - [phi x]) C
-    from models.earth import ecef_to_geodetic
+    from aligngym.models.earth import ecef_to_geodetic
     lat, lon, h = ecef_to_geodetic(r[0] + x0[:3])
     C_en = C_n_e(lat, lon).T
     perturbed_inputs.q_b_n0 = dcm_to_quat(C_en @ C_wrong)[None]
@@ -255,7 +255,7 @@ def test_measurement_matrix_and_feedback_against_the_navigation_solution(ideal_m
     reference = LooselyCoupledModel(_inputs(ideal_motion, 70.0, 2, gps=True), TUNING)
     perturbed_inputs = _inputs(ideal_motion, 70.0, 2, gps=True)
     r, v, C = _ins_ecef(reference)
-    from models.earth import ecef_to_geodetic
+    from aligngym.models.earth import ecef_to_geodetic
     lat, lon, h = ecef_to_geodetic(r[0] + [0.3, -0.2, 0.1])
     C_en = C_n_e(lat, lon).T
     perturbed_inputs.q_b_n0 = dcm_to_quat(C_en @ rotvec_to_dcm(-np.array([1e-4, -2e-4, 3e-4]))
@@ -414,7 +414,7 @@ def test_bad_input_gives_one_line_errors(tmp_path):
 
 
 def test_bench_command_writes_the_paper_table_and_json(tmp_path, capsys):
-    from scenarios.cli import main
+    from aligngym.scenarios.cli import main
     path = tmp_path / "tiny.toml"
     path.write_text(SHORT.format(extra="").replace("duration_s = 240.0", "duration_s = 110.0")
                     .replace("start_time_s = 40.0", "start_time_s = 60.0"))
@@ -459,8 +459,8 @@ def test_velocity_aided_alignment_recovers_the_attitude_in_motion(ideal_motion):
     recover C_b^n to 1e-6 rad (measured 1.4e-6 here, 0.3 arcsec: the trapezoid rule over
     1 s between fixes while the velocity turns at 10 deg/s); without the 1.3 m lever arm's
     compensation it is off by minutes of arc."""
-    from estimators.inertial_frame import velocity_aided_alignment
-    from estimators.metrics import misalignment
+    from aligngym.estimators.inertial_frame import velocity_aided_alignment
+    from aligngym.estimators.metrics import misalignment
     ep, dt = ideal_motion, ideal_motion.config.imu_interval
     i0, i1 = int(round(60.0 / dt)), int(round(110.0 / dt))
     fixes = np.arange(60, 111)

@@ -11,16 +11,16 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from estimators.alignment import run_alignment
-from estimators.euler_large import (PAPER002, C_p_n, EulerLargeMisalignmentModel,
+from aligngym.estimators.alignment import run_alignment
+from aligngym.estimators.euler_large import (PAPER002, C_p_n, EulerLargeMisalignmentModel,
                                     SmallAngleModel, stack_integrals)
-from estimators.filters import make_filter
-from models.earth import OMEGA_IE, normal_gravity
-from models.units import arcmin, deg, deg_per_h, ug
-from scenarios.campaign import analyse_run, episode_seeds, prepare_all
-from scenarios.cli import main
-from scenarios.experiments import experiment
-from sensors.imu import ImuSpec, TriadSpec
+from aligngym.estimators.filters import make_filter
+from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.models.units import arcmin, deg, deg_per_h, ug
+from aligngym.scenarios.campaign import analyse_run, episode_seeds, prepare_all
+from aligngym.scenarios.cli import main
+from aligngym.scenarios.experiments import experiment
+from aligngym.sensors.imu import ImuSpec, TriadSpec
 
 DEFAULT_FILTERS = experiment("paper002").default_filters
 
@@ -265,7 +265,7 @@ def test_scenario_filter_table_is_used_and_checked(tmp_path, capsys):
 
 def test_threaded_batch_chunks_give_the_same_result():
     """run_filter split over threads (batch chunks) equals the single batch exactly."""
-    from scenarios.campaign import prepare_all, run_filter
+    from aligngym.scenarios.campaign import prepare_all, run_filter
 
     exp = experiment("paper002", fine_duration=20.0)
     episodes = prepare_all(exp, [1, 2, 3], None, False, 1, progress=False)

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from models.earth import OMEGA_IE, normal_gravity
-from models.units import arcmin, deg, deg_per_h, ug
-from scenarios.cli import main
-from scenarios.paper003 import (Paper003Experiment, coarse_errors, prepare_episode,
+from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.models.units import arcmin, deg, deg_per_h, ug
+from aligngym.scenarios.cli import main
+from aligngym.scenarios.paper003 import (Paper003Experiment, coarse_errors, prepare_episode,
                                 run_campaign, run_filter)
-from sensors.imu import ImuSpec, TriadSpec
+from aligngym.sensors.imu import ImuSpec, TriadSpec
 
 CONSTANT_BIASES = ImuSpec(
     gyro=TriadSpec(bias_sigma=0.01 * deg_per_h,
@@ -118,7 +118,7 @@ def test_campaign_outputs_and_json_shape(sway_campaign, tmp_path):
     out, result = sway_campaign
     assert len(list((out / "episodes").glob("seed_*.npz"))) == 4  # one file per episode
     json_path = tmp_path / "s.json"
-    from scenarios.report import write_outputs
+    from aligngym.scenarios.report import write_outputs
     write_outputs(result, out, json_path)
     for name in ("results.csv", "coarse.csv", "timeseries.npz", "fine_error_mean.png",
                  "fine_error_max.png"):
@@ -174,7 +174,7 @@ def test_outputs_checked_before_any_work(tmp_path, capsys):
     assert main(base + ["--out", str(out), "--seed", "5"]) == 2
     assert "holds a campaign; use --resume" in capsys.readouterr().err
     assert main(base + ["--out", str(out), "--seed", "5", "--force"]) == 0
-    from scenarios.campaign import episode_seeds
+    from aligngym.scenarios.campaign import episode_seeds
     assert [p.name for p in (out / "episodes").glob("*.npz")] == [
         f"seed_{episode_seeds(5, 1)[0]}.npz"]
     (out / "campaign.json").unlink()          # episodes whose campaign is unknown
@@ -198,9 +198,9 @@ def test_outputs_checked_before_any_work(tmp_path, capsys):
 def test_hull_frame_biases_are_not_modulated():
     """[imu] bias_frame = "hull": the sensed bias, turned back into the hull frame, is the
     drawn constant; in the sensor frame it averages out (the gimbal modulates it)."""
-    from models.attitude import dcm_to_rotvec, quat_to_dcm, rotvec_to_dcm
-    from scenarios.config import load_scenario
-    from scenarios.simulate import simulate
+    from aligngym.models.attitude import dcm_to_rotvec, quat_to_dcm, rotvec_to_dcm
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.simulate import simulate
 
     config = load_scenario("ship-sway-rotary-paper").with_options(duration=120.0)
     erroneous, ideal = simulate(config, seed=4), simulate(config, seed=4, ideal=True)
@@ -225,7 +225,7 @@ def test_paper_setup_converges_to_the_unmodulated_bias_floors(name):
     and heading settle on accelerometer bias / g and -east drift / (Omega cos L) +
     phi_N tan L within 5 % (the tan L term alone is ~10 % here), not below them as with
     modulated biases."""
-    from scenarios.experiments import experiment as make_experiment
+    from aligngym.scenarios.experiments import experiment as make_experiment
 
     exp = make_experiment("paper003", "paper")
     config = calm(exp.scenario_config(), imu=CONSTANT_BIASES)
@@ -274,7 +274,7 @@ def test_sway_aware_model_oracles(experiment):
     sway term -C_n^i(t1) v(t1) as the 12-state model's does; at t1 the measurement sees
     only dV's own uncertainty (that term cancels the oscillators' start); the
     oscillators' covariance is stationary (A P A^T + Q = P)."""
-    from estimators.inertial_fine import SWAY
+    from aligngym.estimators.inertial_fine import SWAY
 
     config = experiment.scenario_config()
     episode = prepare_episode(replace(experiment, fine_duration=20.0), 5, config=config)

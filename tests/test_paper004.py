@@ -8,10 +8,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from models.units import deg
-from scenarios.campaign import run_campaign
-from scenarios.config import ConfigError
-from scenarios.paper004 import Paper004Experiment, paper004_summary, run_metrics
+from aligngym.models.units import deg
+from aligngym.scenarios.campaign import run_campaign
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.paper004 import Paper004Experiment, paper004_summary, run_metrics
 
 SHORT = {"fine_duration": 400.0, "rms_start": 300.0}
 
@@ -132,7 +132,7 @@ def test_swing_levels_and_cases_reach_the_scenario():
 def test_swing_levels_merge_into_one_json(campaign):
     """--swing all: each level's summary nests under its level, per filter."""
     from copy import deepcopy
-    from scenarios.paper004 import merge_levels
+    from aligngym.scenarios.paper004 import merge_levels
     moderate = paper004_summary(campaign)
     severe = deepcopy(moderate)
     for per_level in severe["fine"].values():
@@ -149,8 +149,8 @@ def test_swing_levels_merge_into_one_json(campaign):
 def test_wave_driven_boat_sea_states_reach_the_scenario():
     """--motion waves: the wave-driven boat, its sea set by the swing level; the still
     turntable and a scenario of the other world are one-line errors."""
-    from scenarios.paper004 import SEA_STATES
-    from scenarios.experiments import experiment
+    from aligngym.scenarios.paper004 import SEA_STATES
+    from aligngym.scenarios.experiments import experiment
     severe = experiment("paper004", motion="waves", swing="severe").scenario_config()
     assert severe.world == "ship-waves" and severe.name == "usv-mems-waves"
     assert (severe.motion.significant_wave_height,
@@ -169,7 +169,7 @@ class IdealSensors(Paper004Experiment):
     """The experiment on error-free IMU and GNSS data."""
 
     def scenario_config(self):
-        from sensors.imu import ImuSpec, TriadSpec
+        from aligngym.sensors.imu import ImuSpec, TriadSpec
         config = super().scenario_config()
         still = TriadSpec(bias_fixed=(0.0, 0.0, 0.0))
         return replace(config, imu=ImuSpec(gyro=still, accel=still),

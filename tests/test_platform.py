@@ -4,13 +4,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from models.attitude import euler_to_dcm, quat_rotate, quat_to_euler
-from models.earth import earth_rate_n, normal_gravity
-from models.platform import StaticPlatformMotion, StaticPlatformWorld
-from models.units import arcsec, deg
-from models.world import PrescribedWorld
-from scenarios.config import DATA_DIR, ConfigError, load_scenario
-from scenarios.simulate import simulate
+from aligngym.models.attitude import euler_to_dcm, quat_rotate, quat_to_euler
+from aligngym.models.earth import earth_rate_n, normal_gravity
+from aligngym.models.platform import StaticPlatformMotion, StaticPlatformWorld
+from aligngym.models.units import arcsec, deg
+from aligngym.models.world import PrescribedWorld
+from aligngym.scenarios.config import DATA_DIR, ConfigError, load_scenario
+from aligngym.scenarios.simulate import simulate
 
 NAME = "static-large-azimuth"
 
@@ -107,7 +107,7 @@ def test_erroneous_imu_shows_the_drawn_biases(config):
 def test_fidelity_600s(config):
     """SPEC 3 (1 arcsec, 5 mm/s, 1 m over 600 s at 100 Hz); we assert 10x better. ~7 s:
     the cost is the strapdown's 60 000 steps, not the world."""
-    from scenarios.fidelity import fidelity_errors
+    from aligngym.scenarios.fidelity import fidelity_errors
 
     err = fidelity_errors(config, seed=0)
     assert err["attitude_rad"] < 0.1 * arcsec
@@ -138,7 +138,7 @@ def test_bad_motion_names_the_field(tmp_path, old, new, message):
 
 
 def test_cli_simulate_and_bad_file(tmp_path, capsys):
-    from scenarios.cli import main
+    from aligngym.scenarios.cli import main
 
     out = tmp_path / "static.npz"
     assert main(["simulate", NAME, "--duration", "10", "--out", str(out)]) == 0

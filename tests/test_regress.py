@@ -3,10 +3,10 @@ import json
 
 import pytest
 
-from scenarios import paper003
-from scenarios.cli import main
-from scenarios.config import ConfigError
-from scenarios.regress import CAMPAIGNS, Difference, compare, regress
+from aligngym.scenarios import paper003
+from aligngym.scenarios.cli import main
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.regress import CAMPAIGNS, Difference, compare, regress
 
 
 def test_regress_passes_on_the_landed_code(capsys):

@@ -5,8 +5,8 @@ errors."""
 import numpy as np
 import pytest
 
-from scenarios.config import ConfigError, load_scenario
-from scenarios.render import SceneRenderer
+from aligngym.scenarios.config import ConfigError, load_scenario
+from aligngym.scenarios.render import SceneRenderer
 
 SIZE = (240, 320)
 
@@ -85,8 +85,8 @@ def test_other_worlds_show_the_carrier_and_the_imu(name):
 def test_the_wave_boat_is_posed_from_its_episode():
     """The floating boat's pose is the episode's: its run with the same seed (the same
     sea), the carrier's attitude read back from MuJoCo equal to the simulated truth."""
-    from models.attitude import dcm_to_quat, quat_angle
-    from scenarios.simulate import simulate
+    from aligngym.models.attitude import dcm_to_quat, quat_angle
+    from aligngym.scenarios.simulate import simulate
     config = load_scenario("usv-mems-waves").with_options(duration=10.0)
     renderer = SceneRenderer(config, seed=3, size=SIZE)
     try:
@@ -102,7 +102,7 @@ def test_the_wave_boat_is_posed_from_its_episode():
 
 
 def test_render_writes_a_video(tmp_path):
-    from scenarios.cli import main
+    from aligngym.scenarios.cli import main
     import imageio.v2 as imageio
     out = tmp_path / "ship.mp4"
     assert main(["render", "static-large-azimuth", "--duration", "1", "--fps", "4",
@@ -123,7 +123,7 @@ def test_render_writes_a_video(tmp_path):
     (["--out", "x.avi"], "the video is written as .mp4"),
 ])
 def test_bad_render_options_are_one_line_errors(tmp_path, capsys, argv, message):
-    from scenarios.cli import main
+    from aligngym.scenarios.cli import main
     args = ["render", "static-large-azimuth", "--duration", "1",
             "--out", str(tmp_path / "v.mp4"), *argv]
     assert main(args) == 2
@@ -132,9 +132,9 @@ def test_bad_render_options_are_one_line_errors(tmp_path, capsys, argv, message)
 
 
 def test_an_estimator_needs_a_pipeline(tmp_path):
-    from scenarios.render import render_video
+    from aligngym.scenarios.render import render_video
     path = tmp_path / "mine.toml"
-    from scenarios.registry import DATA_DIR
+    from aligngym.scenarios.registry import DATA_DIR
     text = (DATA_DIR / "ship-sway-rotary.toml").read_text()
     path.write_text(text.replace('name = "ship-sway-rotary"', 'name = "my-ship"'))
     config = load_scenario(str(path)).with_options(duration=1.0)
@@ -187,7 +187,7 @@ def test_the_sea_is_the_wave_model():
 
 
 def test_render_start_and_output_errors(tmp_path, capsys):
-    from scenarios.cli import main
+    from aligngym.scenarios.cli import main
     blocked = tmp_path / "file"
     blocked.write_text("")
     for argv, message in (

@@ -11,13 +11,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from models.units import arcmin
-from scenarios.campaign import run_campaign
-from scenarios.cli import main
-from scenarios.experiments import experiment
-from scenarios.figures import (error_bands, heading_convergence_cdfs, mean_nees_band,
+from aligngym.models.units import arcmin
+from aligngym.scenarios.campaign import run_campaign
+from aligngym.scenarios.cli import main
+from aligngym.scenarios.experiments import experiment
+from aligngym.scenarios.figures import (error_bands, heading_convergence_cdfs, mean_nees_band,
                                median_nees_band, nees_curves)
-from scenarios.report import format_tables, write_outputs
+from aligngym.scenarios.report import format_tables, write_outputs
 
 CAMPAIGNS = {
     "paper000": ({"fine_duration": 60.0, "starts": ("coarse",)}, ["rdghkf", "ekf"], 1),
@@ -33,7 +33,7 @@ whose car starts at 80 s instead of 270 s (``early_figure8``)."""
 
 def early_figure8(directory):
     """figure8-gps with the car starting at 80 s, as a scenario file in directory."""
-    from scenarios.config import DATA_DIR
+    from aligngym.scenarios.config import DATA_DIR
     text = (DATA_DIR / "figure8-gps.toml").read_text()
     assert "start_time_s = 270.0" in text
     path = directory / "figure8-early.toml"
@@ -54,7 +54,7 @@ def campaigns(tmp_path_factory):
     for paper, (settings, filters, episodes) in CAMPAIGNS.items():
         if paper == "paper001":
             settings = {**settings, "scenario": scenario_file}
-        module = importlib.import_module(f"scenarios.{paper}")
+        module = importlib.import_module(f"aligngym.scenarios.{paper}")
         seen = []
         with pytest.MonkeyPatch.context() as mp:
             original = module.nees
@@ -149,7 +149,7 @@ def test_figures_draw_diverged_episodes_without_warnings(tmp_path):
     """A filter with every episode diverged (its errors NaN after the event) and one with
     one of four: the four figures are drawn, without a NaN warning."""
     import warnings
-    from scenarios.figures import write_figures
+    from aligngym.scenarios.figures import write_figures
     rng = np.random.default_rng(2)
     K = 50
     error = rng.normal(0.0, 1.0, (4, K, 3)) / (1.0 + np.arange(K))[:, None]

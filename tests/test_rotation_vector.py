@@ -7,14 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from estimators.rotation_vector import (DV, DP, N_STATES, PHI, InsQuantities, J_r_inv,
+from aligngym.estimators.rotation_vector import (DV, DP, N_STATES, PHI, InsQuantities, J_r_inv,
                                         classic_derivative, classic_matrix, classic_to_st,
                                         st_derivative, st_to_classic, stekf_matrix)
-from estimators.strapdown import StrapdownState, run_strapdown
-from models.attitude import dcm_to_quat, dcm_to_rotvec, quat_to_dcm, rotvec_to_dcm
-from models.earth import gravity_n
-from scenarios.config import load_scenario
-from scenarios.simulate import simulate
+from aligngym.estimators.strapdown import StrapdownState, run_strapdown
+from aligngym.models.attitude import dcm_to_quat, dcm_to_rotvec, quat_to_dcm, rotvec_to_dcm
+from aligngym.models.earth import gravity_n
+from aligngym.scenarios.config import load_scenario
+from aligngym.scenarios.simulate import simulate
 
 
 @pytest.mark.parametrize("phi", [[1e-6, -2e-6, 3e-6], [0.1, -0.2, 0.3], [1.2, -0.8, 2.0]])
@@ -182,8 +182,8 @@ def figure8_inputs(tmp_path_factory):
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).parent))
     from test_paper001 import short_scenario
-    from scenarios.paper001 import Paper001Experiment, model_inputs
-    from models.units import deg
+    from aligngym.scenarios.paper001 import Paper001Experiment, model_inputs
+    from aligngym.models.units import deg
     exp = Paper001Experiment(scenario=short_scenario(tmp_path_factory.mktemp("p004")),
                              coarse_duration=30.0)
     episodes = [exp.prepare_episode(s) for s in (1, 2)]
@@ -192,8 +192,8 @@ def figure8_inputs(tmp_path_factory):
 
 
 def _tuning():
-    from estimators.rotation_vector import RotationVectorTuning
-    from models.units import deg, deg_per_h
+    from aligngym.estimators.rotation_vector import RotationVectorTuning
+    from aligngym.models.units import deg, deg_per_h
     return RotationVectorTuning(
         attitude_sigma=(45 * deg, 45 * deg, 60 * deg), velocity_sigma=0.1, position_sigma=1.0,
         gyro_bias_sigma=1 * deg_per_h, accel_bias_sigma=1e-4, gyro_noise_density=0.1 * deg / 60,
@@ -204,7 +204,7 @@ def _tuning():
 def test_nonlinear_and_linear_transformed_models_agree_near_zero(figure8_inputs):
     """The STUKF's map (RK4 of 6.1/6.4/6.5) and the STEKF's Phi (6.7) agree on a small
     error state, and so do the measurement maps (the (6.6) h and (6.7) H)."""
-    from estimators.rotation_vector import RotationVectorGnssModel
+    from aligngym.estimators.rotation_vector import RotationVectorGnssModel
     _, inputs = figure8_inputs
     nonlinear = RotationVectorGnssModel(inputs(), _tuning(), "st")
     linear = RotationVectorGnssModel(inputs(), _tuning(), "st-linear")
@@ -225,13 +225,13 @@ def test_stekf_aligns_the_moving_car_from_60_degrees(figure8_inputs):
     """Velocity-aided alignment in motion with the transformed EKF, closed loop from the
     start: from 10, -10, 60 deg to 0.1 deg in 170 s of driving (measured 0.015 deg
     level, 0.014 deg heading), within 4 of its own sigmas (the level errors sit at 3)."""
-    from estimators.alignment import run_alignment
-    from estimators.filters import GaussianFilter
-    from estimators.adaptation import NoAdaptation
-    from estimators.metrics import misalignment
-    from estimators.rotation_vector import RotationVectorGnssModel
-    from estimators.rules import LinearizationRule
-    from models.units import deg
+    from aligngym.estimators.alignment import run_alignment
+    from aligngym.estimators.filters import GaussianFilter
+    from aligngym.estimators.adaptation import NoAdaptation
+    from aligngym.estimators.metrics import misalignment
+    from aligngym.estimators.rotation_vector import RotationVectorGnssModel
+    from aligngym.estimators.rules import LinearizationRule
+    from aligngym.models.units import deg
     episodes, inputs = figure8_inputs
     result = run_alignment(GaussianFilter("stekf", LinearizationRule(), NoAdaptation()),
                            RotationVectorGnssModel(inputs(), _tuning(), "st-linear"))
@@ -246,11 +246,11 @@ def test_stukf_aligns_the_moving_car_from_60_degrees(figure8_inputs):
     """The registry's stukf (kappa = 3 - n: points at sqrt(3) sigma; with kappa = 0 they
     sit at sqrt(15) x 45-60 deg, past pi, and it fails) on the transformed model, closed
     loop: from (10, -10, 60) deg to 0.05 deg in 170 s (measured 0.004-0.011 deg)."""
-    from estimators.alignment import run_alignment
-    from estimators.filters import filter_entry, make_filter
-    from estimators.metrics import misalignment
-    from estimators.rotation_vector import RotationVectorGnssModel
-    from models.units import deg
+    from aligngym.estimators.alignment import run_alignment
+    from aligngym.estimators.filters import filter_entry, make_filter
+    from aligngym.estimators.metrics import misalignment
+    from aligngym.estimators.rotation_vector import RotationVectorGnssModel
+    from aligngym.models.units import deg
     episodes, inputs = figure8_inputs
     assert filter_entry("stukf").model == "st" and filter_entry("stekf").model == "st-linear"
     result = run_alignment(make_filter("stukf"),

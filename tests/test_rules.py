@@ -3,8 +3,8 @@ moments of nonlinear maps against closed forms."""
 import numpy as np
 import pytest
 
-from estimators.model import GaussianMap
-from estimators.rules import (CubatureRule, GaussHermiteRule, LinearizationRule,
+from aligngym.estimators.model import GaussianMap
+from aligngym.estimators.rules import (CubatureRule, GaussHermiteRule, LinearizationRule,
                               ReducedGaussHermiteRule, SparseGridGaussHermiteRule,
                               UnscentedRule, gauss_hermite_1d)
 

@@ -3,14 +3,14 @@ marble platform show up in a segmentation render, the RGB frame is not blank, an
 scene dressing is visual only."""
 from dataclasses import replace
 
-import models  # noqa: F401  (first: headless MUJOCO_GL=egl before mujoco loads)
+from aligngym import models  # noqa: F401  (first: headless MUJOCO_GL=egl before mujoco loads)
 import mujoco
 import numpy as np
 import pytest
 
-from models.car import CarParams, CarWorld, car_mjcf
-from scenarios.config import load_scenario
-from scenarios.simulate import make_world
+from aligngym.models.car import CarParams, CarWorld, car_mjcf
+from aligngym.scenarios.config import load_scenario
+from aligngym.scenarios.simulate import make_world
 
 MIN_PIXELS = 20
 """Least pixels a key geom covers in a 240 x 320 frame (the smallest measured: 50, an

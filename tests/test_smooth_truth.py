@@ -2,9 +2,9 @@
 analytic motion: MuJoCo's exact sensors on the prescribed ship."""
 import numpy as np
 
-from models.attitude import quat_angle, quat_conj, quat_mul, quat_to_dcm, quat_to_rotvec
-from models.ship import ShipSwayMotion, ShipWorld
-from models.world import DiscreteRun, SmoothRun
+from aligngym.models.attitude import quat_angle, quat_conj, quat_mul, quat_to_dcm, quat_to_rotvec
+from aligngym.models.ship import ShipSwayMotion, ShipWorld
+from aligngym.models.world import DiscreteRun, SmoothRun
 
 H = 0.002          # s, the physics step
 DURATION = 20.0    # s

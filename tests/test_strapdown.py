@@ -3,12 +3,12 @@ fidelity requirement on the ship scenario."""
 import numpy as np
 import pytest
 
-from estimators.strapdown import (StrapdownState, Strapdown, body_velocity_increment,
+from aligngym.estimators.strapdown import (StrapdownState, Strapdown, body_velocity_increment,
                                   run_strapdown)
-from models.attitude import rotvec_to_dcm, skew
-from models.units import arcsec
-from scenarios.fidelity import fidelity_errors
-from scenarios.simulate import simulate
+from aligngym.models.attitude import rotvec_to_dcm, skew
+from aligngym.models.units import arcsec
+from aligngym.scenarios.fidelity import fidelity_errors
+from aligngym.scenarios.simulate import simulate
 
 
 def exact_constant_rate(omega, f_b, T):
@@ -83,7 +83,7 @@ def test_fidelity_ship_sway_rotary_600s(ship_config):
 
 def test_stationary_navigation_stays_put():
     """Exact stationary increments at 40 N: the navigation solution does not move."""
-    from models.earth import earth_rate_n, normal_gravity
+    from aligngym.models.earth import earth_rate_n, normal_gravity
     lat, T, M = np.deg2rad(40.0), 0.01, 6000
     dtheta = np.tile(earth_rate_n(lat) * T, (M, 1))       # body = ENU
     dv = np.tile([0.0, 0.0, normal_gravity(lat) * T], (M, 1))
@@ -96,7 +96,7 @@ def test_stationary_navigation_stays_put():
 def test_body_rate_at_boundaries_is_exact_for_a_linear_rate():
     """Increments of the rate a + b t: the rate at every boundary, the two ends (linear
     extrapolation) included, without the half-interval lag of an interval's mean."""
-    from estimators.strapdown import body_rate_at
+    from aligngym.estimators.strapdown import body_rate_at
     dt, S = 0.01, 10
     a, b = np.array([0.1, -0.2, 0.3]), np.array([2.0, 1.0, -3.0])
     t = np.arange(S + 1) * dt

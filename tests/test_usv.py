@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from models.attitude import euler_to_dcm
-from models.indexer import IndexerSpec, simulate_indexer
-from models.units import arcsec, deg
-from scenarios.config import ConfigError, load_scenario
-from scenarios.simulate import simulate
+from aligngym.models.attitude import euler_to_dcm
+from aligngym.models.indexer import IndexerSpec, simulate_indexer
+from aligngym.models.units import arcsec, deg
+from aligngym.scenarios.config import ConfigError, load_scenario
+from aligngym.scenarios.simulate import simulate
 
 NAME = "usv-mems-swing"
 
@@ -81,7 +81,7 @@ def test_encoder_reads_the_servo_angle_and_the_truth_has_it(config):
     # at rest on 180 deg between the slews, turning in them
     assert abs(truth.gimbal_angles[np.searchsorted(t, 450.0), 0] - math.pi) < 1e-3
     # the IMU turns with the indexer: C_s^n = C_b^n Rz(angle)
-    from models.attitude import quat_to_dcm, rot_z
+    from aligngym.models.attitude import quat_to_dcm, rot_z
     i = np.searchsorted(t, 450.0)
     C_s_b = quat_to_dcm(truth.q_b_n[i]).T @ quat_to_dcm(truth.q_s_n[i])
     np.testing.assert_allclose(C_s_b, rot_z(truth.gimbal_angles[i, 0]), atol=1e-12)
@@ -89,7 +89,7 @@ def test_encoder_reads_the_servo_angle_and_the_truth_has_it(config):
 
 def test_fidelity_600s_with_the_indexer_turning(config):
     """SPEC section 3 on this scenario (two slews inside the 600 s): 10x tighter."""
-    from scenarios.fidelity import fidelity_errors
+    from aligngym.scenarios.fidelity import fidelity_errors
     err = fidelity_errors(config.with_options(duration=620.0), seed=0)
     assert err["attitude_rad"] < 0.1 * arcsec
     assert err["velocity_m_s"] < 0.5e-3
@@ -99,8 +99,8 @@ def test_fidelity_600s_with_the_indexer_turning(config):
 def test_ideal_gnss_is_the_antenna_of_the_prescribed_hull(config):
     """The antenna (MuJoCo site) against the motion's own analytic kinematics:
     r = sway centre + C_b^t antenna_b, v = v_centre + C_b^t (omega x antenna_b)."""
-    from models.earth import TangentPlane
-    from models.truth import plane_truth
+    from aligngym.models.earth import TangentPlane
+    from aligngym.models.truth import plane_truth
     cfg = config.with_options(duration=60.0)
     episode = simulate(cfg, seed=0, ideal=True)
     m = cfg.motion
@@ -132,7 +132,7 @@ def test_ideal_gnss_is_the_antenna_of_the_prescribed_hull(config):
     ("dwell_deg = 300.0", "indexer.dwell_deg"),
 ])
 def test_bad_indexer_input_is_one_line_naming_the_field(tmp_path, table, field):
-    from scenarios.config import DATA_DIR
+    from aligngym.scenarios.config import DATA_DIR
     key = table.split(" =")[0]
     lines = [line for line in (DATA_DIR / f"{NAME}.toml").read_text().splitlines()
              if not line.startswith(key + " ")]
@@ -147,7 +147,7 @@ def test_bad_indexer_input_is_one_line_naming_the_field(tmp_path, table, field):
 
 def edited(tmp_path, name, *replacements):
     """A shipped scenario's file with (old, new) text replacements, as a path."""
-    from scenarios.registry import DATA_DIR
+    from aligngym.scenarios.registry import DATA_DIR
     text = (DATA_DIR / f"{name}.toml").read_text()
     for old, new in replacements:
         assert old in text
@@ -181,7 +181,7 @@ def test_wave_boat_servo_follows_its_command_inside_the_floating_hull(tmp_path):
     """The indexer is a MuJoCo actuator in the floating hull's model: the encoder follows
     the ramp with the servo's lag 2 zeta rate / w_n (within 20 %), rests on each stop, and
     the IMU turns with it relative to the hull."""
-    from models.attitude import quat_to_dcm, rot_z
+    from aligngym.models.attitude import quat_to_dcm, rot_z
     config = waves_with_slews(tmp_path)
     spec = config.motion.indexer
     episode = simulate(config, seed=2)
@@ -202,7 +202,7 @@ def test_wave_boat_servo_follows_its_command_inside_the_floating_hull(tmp_path):
 def test_wave_boat_fidelity_with_the_indexer_slewing(tmp_path):
     """SPEC section 3 on the wave-driven boat over two slews (80 s, 10x tighter than the
     600 s bar, which the drift rates extrapolate to)."""
-    from scenarios.fidelity import fidelity_errors
+    from aligngym.scenarios.fidelity import fidelity_errors
     err = fidelity_errors(waves_with_slews(tmp_path), seed=0)
     assert err["attitude_rad"] < 0.1 * arcsec
     assert err["velocity_m_s"] < 0.5e-3
@@ -212,8 +212,8 @@ def test_wave_boat_fidelity_with_the_indexer_slewing(tmp_path):
 def test_wave_boat_gnss_is_the_antenna_on_the_rigid_hull(tmp_path):
     """Ideal fixes at the antenna: the IMU's truth plus the hull's C_b^n (antenna - IMU
     lever arm), and the rigid body's velocity relation, at every fix."""
-    from models.attitude import quat_to_dcm
-    from models.earth import radii
+    from aligngym.models.attitude import quat_to_dcm
+    from aligngym.models.earth import radii
     config = waves_with_slews(tmp_path, duration=30.0)
     episode = simulate(config, seed=1, ideal=True)
     tr, gps = episode.truth, episode.extra

@@ -8,11 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from models.units import arcsec
-from scenarios.config import DATA_DIR, load_scenario
-from scenarios.fidelity import fidelity_errors
-from scenarios.simulate import simulate
-from sensors.gps import GPS_PRESETS, measure
+from aligngym.models.units import arcsec
+from aligngym.scenarios.config import DATA_DIR, load_scenario
+from aligngym.scenarios.fidelity import fidelity_errors
+from aligngym.scenarios.simulate import simulate
+from aligngym.sensors.gps import GPS_PRESETS, measure
 
 
 @pytest.mark.parametrize("name", ["ring-road-odometer", "figure8-gps"])
@@ -51,7 +51,7 @@ def test_gps_error_statistics_and_heading_sigma():
     for preset in ("rtk", "single-point"):
         spec = GPS_PRESETS[preset]
         out = measure(spec, np.arange(n, dtype=float), lat, np.zeros(n), np.zeros(n), v_n, rng)
-        from models.earth import radii
+        from aligngym.models.earth import radii
         R_M, R_N = radii(lat)
         north = (out["gps_lat"] - lat) * R_M
         east = out["gps_lon"] * R_N * np.cos(lat)
@@ -63,7 +63,7 @@ def test_gps_error_statistics_and_heading_sigma():
         ok = out["gps_heading_valid"]
         assert np.std(err[ok] / out["gps_heading_sigma"][ok]) == pytest.approx(1.0, rel=0.1)
     # 001's oracle: 0.0175 m/s at 10 m/s gives 0.1 deg.
-    from sensors.gps import heading_from_velocity
+    from aligngym.sensors.gps import heading_from_velocity
     _, sigma = heading_from_velocity(np.array([[10.0, 0.0, 0.0]]), 0.0175)
     assert math.degrees(sigma[0]) == pytest.approx(0.100, abs=0.001)
 
@@ -90,7 +90,7 @@ def figure8_episode():
 
 def test_figure8_crosses_itself_and_turns_both_ways(figure8_episode):
     ep = figure8_episode
-    from models.earth import radii
+    from aligngym.models.earth import radii
     R_M, R_N = radii(ep.truth.lat[0])
     north = (ep.truth.lat - ep.truth.lat[0]) * R_M
     east = (ep.truth.lon - ep.truth.lon[0]) * R_N * np.cos(ep.truth.lat[0])
@@ -136,7 +136,7 @@ def test_vehicle_bad_input(tmp_path, old, new, expected):
     text = (DATA_DIR / "ring-road-odometer.toml").read_text().replace(old, new)
     path = tmp_path / "s.toml"
     path.write_text(text)
-    proc = subprocess.run([sys.executable, "-m", "scenarios.cli", "simulate", str(path),
+    proc = subprocess.run([sys.executable, "-m", "aligngym.scenarios.cli", "simulate", str(path),
                            "--duration", "0.1", "--out", str(tmp_path / "x.npz")],
                           capture_output=True, text=True)
     if expected is None:
@@ -147,7 +147,7 @@ def test_vehicle_bad_input(tmp_path, old, new, expected):
 
 
 def test_imu_rate_must_divide_physics_rate():
-    proc = subprocess.run([sys.executable, "-m", "scenarios.cli", "simulate",
+    proc = subprocess.run([sys.executable, "-m", "aligngym.scenarios.cli", "simulate",
                            "ring-road-odometer", "--imu-rate", "300", "--out", "x.npz"],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "must divide the car physics rate 500 Hz" in proc.stderr

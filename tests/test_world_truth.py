@@ -4,12 +4,12 @@ the truth is self-consistent with the earth model."""
 import numpy as np
 import pytest
 
-from models.attitude import (quat_conj, quat_mul, quat_rotate, quat_to_dcm, quat_to_euler,
+from aligngym.models.attitude import (quat_conj, quat_mul, quat_rotate, quat_to_dcm, quat_to_euler,
                              rot_x, rot_z)
-from models.earth import earth_rate_n, normal_gravity, radii
-from models.ship import ShipSwayMotion, ShipWorld
-from models.truth import navigation_truth
-from models.units import deg
+from aligngym.models.earth import earth_rate_n, normal_gravity, radii
+from aligngym.models.ship import ShipSwayMotion, ShipWorld
+from aligngym.models.truth import navigation_truth
+from aligngym.models.units import deg
 
 MOTION = ShipSwayMotion(linear_phase=(0.3, 1.7, 4.0))
 
@@ -51,7 +51,7 @@ def test_hull_rate_is_derivative_of_attitude():
     # Independent of the closed form: finite difference of the attitude.
     t = np.array([3.3, 11.0]); h = 1e-5
     q = [MOTION.euler(t + k * h)[0] for k in (-1, 1)]
-    from models.attitude import euler_to_quat, quat_to_rotvec
+    from aligngym.models.attitude import euler_to_quat, quat_to_rotvec
     dq = quat_mul(quat_conj(euler_to_quat(q[0])), euler_to_quat(q[1]))
     omega, omega_dot = MOTION.hull_angular_rate(t)
     np.testing.assert_allclose(quat_to_rotvec(dq) / (2 * h), omega, atol=1e-9)
@@ -104,7 +104,7 @@ def test_kinematic_rollout_equals_mujocos_sensor_path_at_every_state(scenario, s
     given) reads: every sensor, with the hull accelerating, and the boat's indexer
     starting its slew at 300 s (gimbal acceleration)."""
     import mujoco
-    from scenarios.config import load_scenario
+    from aligngym.scenarios.config import load_scenario
     world = ShipWorld(load_scenario(scenario).motion)
     t = np.linspace(start, start + 37.0, 301)
     samples = world.sample(t)

@@ -1,0 +1,90 @@
+"""The installed package as a user gets it: a wheel holds one top-level package,
+``aligngym`` (models, sensors, estimators and scenarios inside it, the scenario files and
+regression baselines as package data), and works from a directory whose own ``models/``,
+``sensors/``, ``estimators/`` and ``scenarios/`` packages would shadow generic names."""
+import subprocess
+import sys
+import venv
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SUBPACKAGES = ("models", "sensors", "estimators", "scenarios")
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    """(wheel path, the venv's python) : the project's wheel installed without its
+    dependencies into a fresh venv that sees this interpreter's site-packages (for numpy,
+    MuJoCo, ...); the venv's own aligngym comes first on its path."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp),
+                    str(ROOT)], check=True, capture_output=True)
+    wheel = next(tmp.glob("aligngym-*.whl"))
+    env = tmp / "venv"
+    venv.EnvBuilder(system_site_packages=True, with_pip=False).create(env)
+    python = env / "bin" / "python"
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "-q",
+                    "--no-deps", str(wheel)], check=True, capture_output=True)
+    return wheel, python
+
+
+def test_the_wheel_holds_aligngym_alone_with_its_data(installed):
+    wheel, _ = installed
+    names = zipfile.ZipFile(wheel).namelist()
+    assert {n.split("/")[0] for n in names} == {"aligngym", wheel.name.split("-py3")[0]
+                                                + ".dist-info"}
+    for sub in SUBPACKAGES:
+        assert f"aligngym/{sub}/__init__.py" in names
+    assert "aligngym/scenarios/data/static-large-azimuth.toml" in names
+    assert "aligngym/scenarios/data/baselines/regress_paper002.json" in names
+
+
+def test_a_users_own_packages_do_not_shadow_aligngym(installed, tmp_path):
+    """From a directory with its own models/ ... scenarios/: import aligngym and its
+    subpackages from the venv, a two-episode bench of paper 002 and its regression
+    campaign against the shipped baseline."""
+    _, python = installed
+    for sub in SUBPACKAGES:
+        (tmp_path / sub).mkdir()
+        (tmp_path / sub / "__init__.py").write_text("OWNER = 'the user'\n")
+    code = ("import sys, aligngym, aligngym.models.attitude, aligngym.scenarios.campaign; "
+            "import models; assert models.OWNER == 'the user'; "
+            "assert 'site-packages' in aligngym.__file__, aligngym.__file__; "
+            "assert 'site-packages' in aligngym.models.attitude.__file__; "
+            "print(aligngym.run_campaign.__module__)")
+    run = subprocess.run([str(python), "-c", code], cwd=tmp_path, capture_output=True,
+                         text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "aligngym.scenarios.campaign"
+    cli = [str(python), "-m", "aligngym.scenarios.cli"]
+    bench = subprocess.run(cli + ["bench", "paper002", "--episodes", "2", "--filters",
+                                  "ekf", "--workers", "1", "--json", "s.json"],
+                           cwd=tmp_path, capture_output=True, text=True)
+    assert bench.returncode == 0, bench.stderr
+    assert (tmp_path / "s.json").is_file()
+    regress = subprocess.run(cli + ["regress", "--papers", "paper002", "--workers", "1"],
+                             cwd=tmp_path, capture_output=True, text=True)
+    assert regress.returncode == 0, regress.stdout + regress.stderr
+    assert "paper002: 54 metrics, 0 beyond tolerance" in regress.stdout
+
+
+def test_every_module_imports_under_aligngym_only():
+    """Importing every module of the package (from the checkout, as the suite runs)
+    loads no top-level models/sensors/estimators/scenarios: no module still imports the
+    old names, which would load a second copy of the code beside aligngym's."""
+    code = ("import pkgutil, sys, importlib, aligngym; "
+            "[importlib.import_module(m.name) for m in "
+            "pkgutil.walk_packages(aligngym.__path__, 'aligngym.')]; "
+            "importlib.import_module('aligngym.models'); "
+            "[importlib.import_module(m.name) for sub in ('models', 'sensors', "
+            "'estimators', 'scenarios') for m in pkgutil.walk_packages("
+            "importlib.import_module('aligngym.' + sub).__path__, f'aligngym.{sub}.')]; "
+            "print(sorted(n for n in sys.modules if n.split('.')[0] in "
+            f"{SUBPACKAGES!r}))")
+    run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "[]"
