@@ -164,10 +164,23 @@ class Experiment(ABC):
     state_count: int = 0
     """Dimension of the experiment's fine-alignment state."""
 
+    def scenario_file(self) -> ScenarioConfig:
+        """The scenario as its file gives it (a shipped name or a .toml path), parsed
+        and validated once per experiment."""
+        cached = self.__dict__.get("_scenario_file")
+        if cached is None:
+            cached = self.__dict__["_scenario_file"] = load_scenario(self.scenario)
+        return cached
+
     def scenario_config(self) -> ScenarioConfig:
         """The scenario (a shipped name or a .toml path), with the experiment's
-        duration; its world and [filter] table checked against the experiment."""
-        config = load_scenario(self.scenario).with_options(duration=self.duration)
+        duration; its world and [filter] table checked against the experiment. Loaded
+        once per experiment (the settings are frozen; ``dataclasses.replace`` makes a
+        new experiment, which loads its own)."""
+        cached = self.__dict__.get("_scenario_config")
+        if cached is not None:
+            return cached
+        config = self.scenario_file().with_options(duration=self.duration)
         if config.world not in self.worlds:
             raise ConfigError(f"paper{self.paper} runs on the {' or '.join(self.worlds)} "
                               f"world; scenario {config.name!r} has world = {config.world!r}")
@@ -175,6 +188,7 @@ class Experiment(ABC):
             if key not in self.filter_keys:
                 raise ConfigError(f"filter.{key} is not a parameter of paper{self.paper}; "
                                   "valid: " + (", ".join(self.filter_keys) or "none"))
+        self.__dict__["_scenario_config"] = config       # frozen dataclass: no setattr
         return config
 
     @property

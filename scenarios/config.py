@@ -12,7 +12,8 @@ from aligngym.models.indexer import IndexerSpec
 from aligngym.models.platform import StaticPlatformMotion
 from aligngym.models.ship import ShipSwayMotion
 from aligngym.models.waves import WaveShipMotion
-from aligngym.models.units import arcsec, deg
+from aligngym.models.units import (G0, arcsec, deg, deg_per_h, deg_per_sqrt_h,
+                                   m_per_s_per_sqrt_h, ug)
 from aligngym.scenarios.registry import DATA_DIR, scenario_names  # noqa: F401  (re-exported)
 from aligngym.sensors.encoder import GimbalEncoderSpec
 from aligngym.sensors.faults import ImuFaults
@@ -326,17 +327,11 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     if world not in WORLDS:
         raise ConfigError(f"world = {world!r} is unknown; valid choices: " + ", ".join(WORLDS))
     origin, run, imu, motion = (section(s) for s in ("origin", "run", "imu", "motion"))
-    preset = imu.get("preset")
-    unknown = sorted(set(imu) - {"preset", "bias_frame"})
-    if unknown:
-        raise ConfigError(f"imu.{unknown[0]} is not a parameter; valid: bias_frame, preset")
-    bias_frame = imu.get("bias_frame", "sensor")
+    bias_frame = imu.pop("bias_frame", "sensor")
     if bias_frame not in BIAS_FRAMES:
         raise ConfigError(f"imu.bias_frame = {bias_frame!r} is unknown; valid choices: "
                           + ", ".join(BIAS_FRAMES))
-    if preset not in IMU_PRESETS:
-        raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
-                          + ", ".join(sorted(IMU_PRESETS)))
+    preset, imu_spec = _imu_spec(imu)
     if world not in ("ship-prescribed", "ship-waves") and "indexer" in raw:
         raise ConfigError(f"[indexer] exists on the ship worlds only, not {world}")
     indexer = section("indexer", False)
@@ -378,7 +373,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
             world=world, latitude=origin["latitude"], longitude=origin["longitude"],
             height=origin["height"], duration=run["duration"], imu_rate=run["imu_rate"],
-            imu_preset=preset, imu=IMU_PRESETS[preset], imu_bias_frame=bias_frame,
+            imu_preset=preset, imu=imu_spec, imu_bias_frame=bias_frame,
             encoder=encoder, motion=motion_obj,
             random_linear_phase=random_phase, odometer=odometer, gps=gps,
             filter=filter_table, faults=faults)
@@ -386,6 +381,69 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
     config.validate()
     return config
+
+
+IMU_DATASHEET = {
+    # key: (triad, TriadSpec field, factor to SI, upper bound in the key's unit)
+    "gyro_bias_deg_h": ("gyro", "bias_sigma", deg_per_h, 1e4),
+    "gyro_arw_deg_sqrt_h": ("gyro", "white_noise_density", deg_per_sqrt_h, 100.0),
+    "gyro_bias_instability_deg_h": ("gyro", "bias_instability", deg_per_h, 1e4),
+    "gyro_correlation_time_s": ("gyro", "correlation_time", 1.0, 1e6),
+    "gyro_rate_random_walk_deg_h_sqrt_h": ("gyro", "random_walk", deg_per_h / 60.0, 1e4),
+    "gyro_scale_factor_ppm": ("gyro", "scale_factor_sigma", 1e-6, 1e5),
+    "gyro_misalignment_arcsec": ("gyro", "misalignment_sigma", arcsec, 3600.0),
+    "gyro_quantization_arcsec": ("gyro", "quantization", arcsec, 3600.0),
+    "gyro_range_deg_s": ("gyro", "measurement_range", deg, 1e5),
+    "accel_bias_ug": ("accel", "bias_sigma", ug, 1e6),
+    "accel_vrw_m_s_sqrt_h": ("accel", "white_noise_density", m_per_s_per_sqrt_h, 100.0),
+    "accel_vrw_ug_sqrt_hz": ("accel", "white_noise_density", ug, 1e6),
+    "accel_bias_instability_ug": ("accel", "bias_instability", ug, 1e6),
+    "accel_correlation_time_s": ("accel", "correlation_time", 1.0, 1e6),
+    "accel_random_walk_ug_sqrt_s": ("accel", "random_walk", ug, 1e6),
+    "accel_scale_factor_ppm": ("accel", "scale_factor_sigma", 1e-6, 1e5),
+    "accel_misalignment_arcsec": ("accel", "misalignment_sigma", arcsec, 3600.0),
+    "accel_quantization_m_s": ("accel", "quantization", 1.0, 1.0),
+    "accel_range_g": ("accel", "measurement_range", G0, 1e4),
+}
+"""[imu] datasheet keys, units in the names: bias repeatability (1 sigma, drawn per
+episode), angle / velocity random walk, bias instability (the datasheet's, Allan floor /
+0.664) with the correlation time of its Gauss-Markov model, rate / acceleration random
+walk, scale factor and axis misalignment (1 sigma), the increment's LSB, the measurement
+range. Each value in [0, bound] (correlation time and range > 0)."""
+
+
+def _imu_spec(table: dict[str, Any]) -> tuple[str, ImuSpec]:
+    """The [imu] table: a preset plus datasheet overrides, or a full datasheet (no preset:
+    every error not given is 0). Returns (preset name or "datasheet", the spec)."""
+    values = dict(table)
+    preset = values.pop("preset", None)
+    if preset is not None and preset not in IMU_PRESETS:
+        raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
+                          + ", ".join(sorted(IMU_PRESETS)))
+    if preset is None and not values:
+        raise ConfigError("[imu] needs a preset (" + ", ".join(sorted(IMU_PRESETS))
+                          + ") or datasheet keys (" + ", ".join(IMU_DATASHEET) + ")")
+    spec = IMU_PRESETS[preset] if preset is not None else ImuSpec()
+    changes: dict[str, dict[str, float]] = {"gyro": {}, "accel": {}}
+    for key, value in values.items():
+        if key not in IMU_DATASHEET:
+            raise ConfigError(f"imu.{key} is not a parameter; valid: bias_frame, preset, "
+                              + ", ".join(IMU_DATASHEET))
+        triad, name, factor, bound = IMU_DATASHEET[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"imu.{key} must be a number, got {value!r}")
+        positive = name in ("correlation_time", "measurement_range")
+        if not (0.0 < value if positive else 0.0 <= value) or not value <= bound:
+            raise ConfigError(f"imu.{key} = {value:g} is out of range "
+                              f"{'(0' if positive else '[0'}, {bound:g}]")
+        if name in changes[triad]:
+            raise ConfigError(f"imu.{key}: the {triad} {name.replace('_', ' ')} is given "
+                              "twice")
+        changes[triad][name] = float(value) * factor
+    if changes["gyro"] or changes["accel"]:
+        spec = ImuSpec(gyro=replace(spec.gyro, **changes["gyro"]),
+                       accel=replace(spec.accel, **changes["accel"]))
+    return preset or "datasheet", spec
 
 
 def _dataclass_from(cls, values: dict[str, Any], section: str):

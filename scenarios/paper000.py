@@ -105,9 +105,8 @@ class Paper000Experiment(Experiment):
 
     @property
     def duration(self) -> float:
-        from aligngym.scenarios.config import load_scenario
         if self.fine_duration is None:
-            return load_scenario(self.scenario).duration
+            return self.scenario_file().duration
         return self.coarse_start + self.coarse_duration + self.fine_duration
 
     def scenario_config(self) -> ScenarioConfig:

@@ -94,10 +94,9 @@ class Paper001Experiment(Experiment):
 
     @property
     def duration(self) -> float:
-        from aligngym.scenarios.config import load_scenario
         if self.fine_duration is None:
-            return load_scenario(self.scenario).duration
-        return self.coarse_window(load_scenario(self.scenario))[1] + self.fine_duration
+            return self.scenario_file().duration
+        return self.coarse_window(self.scenario_file())[1] + self.fine_duration
 
     def coarse_window(self, config: ScenarioConfig) -> tuple[float, float]:
         """(start, end) s of the coarse alignment; the filter starts at its end."""

@@ -134,12 +134,11 @@ class Paper004Experiment(Experiment):
 
     @property
     def duration(self) -> float:
-        from aligngym.scenarios.config import load_scenario
         if self.fine_duration is not None:
             return self.coarse_duration + self.fine_duration
         if self.case == "turntable":
             return TURNTABLE["duration"]
-        return load_scenario(self.scenario).duration
+        return self.scenario_file().duration
 
     def scenario_config(self) -> ScenarioConfig:
         """The scenario at this experiment's swing level (or still, on the turntable) and
@@ -421,8 +420,7 @@ def paper004_summary(result: CampaignResult) -> dict:
     LEVEL is the swing level (or "turntable")."""
     exp = result.experiment
     level = "turntable" if exp.case == "turntable" else exp.swing
-    from aligngym.scenarios.config import load_scenario
-    motion = "waves" if load_scenario(exp.scenario).world == "ship-waves" else "prescribed"
+    motion = "waves" if exp.scenario_file().world == "ship-waves" else "prescribed"
     end = (float(result.runs[0].result.t[-1] + result.episodes[0].t[0]) if result.runs
            else exp.duration)
     rms_start = exp.accuracy_start(end)
