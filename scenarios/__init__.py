@@ -1,13 +1,14 @@
 """Scenario definitions, MuJoCo runners, the gymnasium env, campaigns and the CLI.
 
-Importing this package registers one gymnasium id per scenario with an alignment
-pipeline,
-``aligngym/<Scenario>-v0`` (e.g. ``aligngym/ShipSwayRotary-v0``); gymnasium 1.x ignores
+Importing this package registers one gymnasium id per shipped scenario with an alignment
+pipeline, ``aligngym/<Scenario>-v0`` (e.g. ``aligngym/ShipSwayRotary-v0``), and the
+generic ``aligngym/Alignment-v0`` for any scenario file that names an experiment
+(``gym.make("aligngym/Alignment-v0", scenario="my.toml", ...)``); gymnasium 1.x ignores
 plugin entry points, so registration is explicit here.
 """
 import gymnasium
 
-from aligngym.scenarios.registry import SCENARIO_PAPER, env_id
+from aligngym.scenarios.registry import GENERIC_ENV_ID, SCENARIO_PAPER, env_id
 
 
 # Scenarios with an alignment pipeline behind the env (ring-road-odometer's, paper 000,
@@ -21,6 +22,8 @@ for _name, _id in zip(ENV_SCENARIOS, ENV_IDS):
         # longer episodes short, before their metrics and video.
         gymnasium.register(id=_id, entry_point="aligngym.scenarios.env:AlignmentEnv",
                            kwargs={"scenario": _name})
+if GENERIC_ENV_ID not in gymnasium.registry:      # any scenario file naming an experiment
+    gymnasium.register(id=GENERIC_ENV_ID, entry_point="aligngym.scenarios.env:AlignmentEnv")
 
 
 def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0, **kwargs):

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -85,7 +85,7 @@ FREE = ("outages", "outliers", "slips", "initial_covariance", "stops", "schedule
 
 SECTIONS = ("origin", "run", "imu", "motion", "encoder", "odometer", "gps", "filter",
             "indexer", "faults")
-TOP_KEYS = ("name", "paper", "world")
+TOP_KEYS = ("name", "paper", "experiment", "world")
 
 
 class ConfigError(ValueError):
@@ -198,6 +198,11 @@ class ScenarioConfig:
     rotary IMU, which modulates them) or "hull" (no modulation)."""
     filter: tuple[tuple[str, Any], ...] = ()
     faults: ImuFaults = ImuFaults()
+    experiment: str = ""
+    """The pipeline that runs on this scenario (the file's ``experiment`` key, e.g.
+    "paper003"; "" for none): the only map from a scenario to its experiment."""
+    source: str = field(default="", compare=False)
+    """The file it was read from."""
     """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
     scenario's experiment validates (e.g. paper 002's initial_covariance)."""
 
@@ -371,6 +376,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     try:
         config = ScenarioConfig(
             name=str(raw.get("name", Path(source).stem)), paper=str(raw.get("paper", "")),
+            experiment=_experiment_key(raw.get("experiment", "")), source=source,
             world=world, latitude=origin["latitude"], longitude=origin["longitude"],
             height=origin["height"], duration=run["duration"], imu_rate=run["imu_rate"],
             imu_preset=preset, imu=imu_spec, imu_bias_frame=bias_frame,
@@ -444,6 +450,15 @@ def _imu_spec(table: dict[str, Any]) -> tuple[str, ImuSpec]:
         spec = ImuSpec(gyro=replace(spec.gyro, **changes["gyro"]),
                        accel=replace(spec.accel, **changes["accel"]))
     return preset or "datasheet", spec
+
+
+def _experiment_key(name: str) -> str:
+    """The file's experiment key, checked against the registered experiments."""
+    from aligngym.scenarios.registry import PAPERS
+    if name and name not in PAPERS:
+        raise ConfigError(f"experiment = {name!r} is unknown; valid choices: "
+                          + ", ".join(PAPERS))
+    return name
 
 
 def _dataclass_from(cls, values: dict[str, Any], section: str):

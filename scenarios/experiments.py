@@ -46,8 +46,12 @@ def experiment(paper: str, setup: str = "default", **settings) -> "Experiment":
 
 
 def experiment_for(scenario: str, **settings) -> "Experiment":
-    """The experiment that runs on a shipped scenario."""
-    if scenario not in SCENARIO_PAPER:
-        raise ConfigError(f"scenario {scenario!r} has no alignment pipeline; valid: "
-                          + ", ".join(sorted(SCENARIO_PAPER)))
-    return experiment(SCENARIO_PAPER[scenario], scenario=scenario, **settings)
+    """The experiment that runs on a scenario (a shipped name or a .toml path): the one
+    its file names in its ``experiment`` key."""
+    from aligngym.scenarios.config import load_scenario
+    config = load_scenario(scenario)
+    if not config.experiment:
+        raise ConfigError(f"scenario {config.name!r} names no experiment (its file has no "
+                          "experiment key; valid: " + ", ".join(PAPERS) + "); shipped "
+                          "scenarios with one: " + ", ".join(sorted(SCENARIO_PAPER)))
+    return experiment(config.experiment, scenario=scenario, **settings)

@@ -10,10 +10,26 @@ DATA_DIR = Path(__file__).parent / "data"
 PAPERS = ("paper000", "paper001", "paper002", "paper003", "paper004")
 """Papers with a campaign (``aligngym bench``)."""
 
-SCENARIO_PAPER = {"ring-road-odometer": "paper000", "figure8-gps": "paper001", "ship-sway-rotary": "paper003", "ship-waves-rotary": "paper003",
-                  "static-large-azimuth": "paper002", "usv-mems-swing": "paper004",
-                  "usv-mems-waves": "paper004"}
-"""Shipped scenarios with an alignment pipeline (the env is registered for these)."""
+GENERIC_ENV_ID = "aligngym/Alignment-v0"
+"""The env id for any scenario file that names an experiment:
+``gym.make(GENERIC_ENV_ID, scenario="path/to/my.toml", ...)``."""
+
+
+def _shipped_experiments() -> dict[str, str]:
+    """{shipped scenario: its experiment} from each file's ``experiment`` key (read with
+    tomllib alone: no scenario validation, no heavy imports)."""
+    import tomllib
+    out = {}
+    for path in sorted(DATA_DIR.glob("*.toml")):
+        name = tomllib.loads(path.read_text()).get("experiment", "")
+        if name:
+            out[path.stem] = name
+    return out
+
+
+SCENARIO_PAPER = _shipped_experiments()
+"""Shipped scenarios with an alignment pipeline (each names it in its file; the env is
+registered for these)."""
 
 
 def scenario_names() -> list[str]:

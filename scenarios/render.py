@@ -284,13 +284,14 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
 
     import imageio.v2 as imageio
 
-    from aligngym.scenarios.registry import SCENARIO_PAPER
-    if estimator and config.name not in SCENARIO_PAPER:
-        raise ConfigError("--estimator needs a scenario with an alignment pipeline ("
-                          + ", ".join(sorted(SCENARIO_PAPER)) + f"), not {config.name!r}")
-    if estimator and load_scenario(config.name).with_options(duration=config.duration) != config:
-        raise ConfigError(f"--estimator runs the pipeline of the shipped scenario "
-                          f"{config.name!r}, and this scenario file differs from it")
+    scenario = config.source or config.name
+    if estimator:
+        if not config.experiment:
+            raise ConfigError(f"--estimator needs a scenario that names an experiment (its "
+                              f"file's experiment key); {config.name!r} names none")
+        if load_scenario(scenario).with_options(duration=config.duration) != config:
+            raise ConfigError(f"--estimator runs the pipeline of the scenario file "
+                              f"{scenario}, and this configuration differs from it")
     if not (math.isfinite(fps) and 1.0 <= fps <= 120.0):
         raise ConfigError(f"--fps = {fps:g} is out of range [1, 120]")
     path = Path(out)
@@ -303,7 +304,7 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
     started = time.perf_counter()
     track = None
     if estimator:       # the picture of the episode the filter ran on
-        track, pipeline = estimator_track(config.name, estimator, seed, config.duration)
+        track, pipeline = estimator_track(scenario, estimator, seed, config.duration)
         config = pipeline.with_options(duration=config.duration)
     renderer = SceneRenderer(config, seed=seed, size=size)
     if path.suffix.lower() == ".png":

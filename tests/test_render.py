@@ -132,18 +132,23 @@ def test_bad_render_options_are_one_line_errors(tmp_path, capsys, argv, message)
 
 
 def test_an_estimator_needs_a_pipeline(tmp_path):
+    """--estimator runs the experiment the scenario file names (any file:
+    tests/test_own_scenario.py); a file that names none, or a configuration that is not
+    its file's, is a one-line error before any work."""
+    from dataclasses import replace
+
     from aligngym.scenarios.render import render_video
-    path = tmp_path / "mine.toml"
     from aligngym.scenarios.registry import DATA_DIR
+    path = tmp_path / "mine.toml"
     text = (DATA_DIR / "ship-sway-rotary.toml").read_text()
-    path.write_text(text.replace('name = "ship-sway-rotary"', 'name = "my-ship"'))
+    path.write_text(text.replace('experiment = "paper003"', "# no experiment"))
     config = load_scenario(str(path)).with_options(duration=1.0)
-    with pytest.raises(ConfigError, match="--estimator needs a scenario with an alignment"):
+    with pytest.raises(ConfigError, match="--estimator needs a scenario that names an "
+                       "experiment"):
         render_video(config, str(tmp_path / "v.mp4"), estimator="kf")
-    # a file that keeps a shipped scenario's name but changes it is not run as that one
-    path.write_text(text.replace("latitude_deg = 40.0", "latitude_deg = 41.0"))
-    config = load_scenario(str(path)).with_options(duration=1.0)
-    with pytest.raises(ConfigError, match="this scenario file differs from it"):
+    path.write_text(text)
+    config = replace(load_scenario(str(path)).with_options(duration=1.0), latitude=0.7)
+    with pytest.raises(ConfigError, match="this configuration differs from it"):
         render_video(config, str(tmp_path / "v.mp4"), estimator="kf")
 
 
