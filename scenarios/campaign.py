@@ -163,6 +163,13 @@ class Experiment(ABC):
     """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
     state_count: int = 0
     """Dimension of the experiment's fine-alignment state."""
+    default_episodes: int = 50
+    """Monte Carlo episodes of ``bench`` without --episodes."""
+    setups: dict[str, dict] = {}
+    """Named setups besides "default": settings each overrides (``bench --setup``)."""
+    regress: dict | None = None
+    """The regression campaign (``aligngym regress``): episodes, seed, filters and the
+    settings that differ from the defaults ("experiment"); None: not in regress."""
 
     def scenario_file(self) -> ScenarioConfig:
         """The scenario as its file gives it (a shipped name or a .toml path), parsed

@@ -11,7 +11,7 @@ import sys
 import time
 from typing import NoReturn, Sequence
 
-from aligngym.scenarios.registry import PAPERS, SCENARIO_PAPER, scenario_names
+from aligngym.scenarios.registry import SCENARIO_PAPER, experiment_names, scenario_names
 
 
 class _Parser(argparse.ArgumentParser):
@@ -66,7 +66,7 @@ def _seed(text: str) -> int:
 def _bench_epilog() -> str:
     """Papers, filters and scenarios ``bench`` knows (imports the filter catalogue)."""
     from aligngym.estimators.filters import filter_names
-    return ("papers: " + ", ".join(PAPERS) + "\nfilters: " + ", ".join(filter_names())
+    return ("experiments: " + ", ".join(experiment_names()) + "\nfilters: " + ", ".join(filter_names())
             + "\nscenarios with a pipeline: "
             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
             + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
@@ -105,14 +105,19 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison",
                            epilog=_bench_epilog() if bench_details else None,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    bench.add_argument("paper", choices=list(PAPERS), help="which paper's experiment")
+    bench.add_argument("paper", choices=list(experiment_names()), metavar="EXPERIMENT",
+                       help="the experiment: " + ", ".join(experiment_names()))
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
-                       help="Monte Carlo episodes (default: 100 for paper002, 50 for the "
-                       "others)")
-    bench.add_argument("--setup", choices=["default", "paper"], default="default",
-                       help="paper003: 'paper' reproduces the paper's setup (biases fixed "
-                       "in the hull frame, calm-sea R, fading factors on R; README; "
-                       "default: default)")
+                       help="Monte Carlo episodes (default: the experiment's, 100 for "
+                       "paper002, 50 for the others)")
+    bench.add_argument("--setup", default="default", metavar="NAME",
+                       help="a named setup of the experiment; paper003's 'paper' reproduces "
+                       "the paper's setup (biases fixed in the hull frame, calm-sea R, "
+                       "fading factors on R; README; default: default)")
+    bench.add_argument("--set", action="append", metavar="NAME=VALUE",
+                       help="any setting of the experiment (a field of its Experiment "
+                       "class, e.g. fine_duration=300, start_velocity=odometer); "
+                       "repeatable")
     bench.add_argument("--scenario", metavar="NAME|FILE.toml",
                        help="scenario to run the paper's experiment on (default: the "
                        "paper's: ring-road-odometer for paper000, figure8-gps for "
@@ -202,8 +207,9 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                      "them, as bench paper004 --swing all writes)")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
                          "its stored baseline; exit 1 when a metric moved beyond tolerance")
-    reg.add_argument("--papers", default=",".join(PAPERS),
-                     help="comma-separated papers (default: " + ",".join(PAPERS) + ")")
+    reg.add_argument("--papers", default=None,
+                     help="comma-separated experiments (default: every one with a "
+                     "regression campaign: " + ",".join(experiment_names()) + ")")
     reg.add_argument("--update", action="store_true",
                      help="store this run's metrics as the new baselines (default: compare)")
     reg.add_argument("--baselines", metavar="DIR",
@@ -226,8 +232,51 @@ def _positive_int(field: str):
     return parse
 
 
-DEFAULT_EPISODES = {"paper000": 50, "paper001": 50, "paper002": 100, "paper003": 50,
-                    "paper004": 50}
+SETTING_FLAGS = ("outage", "heading_point", "coarse", "disturbance", "swing", "misalignment",
+                 "case", "motion")
+"""bench's named flags, each an experiment setting of the same name (--heading-point:
+heading_point); any other setting is --set NAME=VALUE."""
+
+
+def _settings_of(cls: type, args: argparse.Namespace) -> dict:
+    """The experiment settings bench's flags and --set NAME=VALUE give, each checked to be
+    a setting (a dataclass field) of the experiment class; VALUE is read as a TOML value
+    (number, true/false, "string", [list]), else as a plain string; "none" is None."""
+    import tomllib
+    from dataclasses import fields
+
+    from aligngym.scenarios.config import ConfigError
+    from aligngym.scenarios.registry import experiment_names
+    known = {f.name: f for f in fields(cls)}
+    out = {}
+    for name in SETTING_FLAGS:
+        value = getattr(args, name)
+        if value is not None:
+            if name not in known:
+                from aligngym.scenarios.experiments import experiment_class
+                having = [n for n in experiment_names()
+                          if name in {f.name for f in fields(experiment_class(n))}]
+                raise ConfigError(f"--{name.replace('_', '-')} exists for "
+                                  f"{', '.join(having) or 'no experiment'} only, not "
+                                  f"{args.paper}")
+            out[name] = value
+    for item in args.set or ():
+        name, sep, text = item.partition("=")
+        name = name.strip().replace("-", "_")
+        if not sep or name not in known:
+            raise ConfigError(f"--set {item!r}: need NAME=VALUE with NAME a setting of "
+                              f"{args.paper}: " + ", ".join(sorted(known)))
+        if text.strip().lower() == "none":
+            value = None
+        else:
+            try:
+                value = tomllib.loads(f"v = {text}")["v"]
+            except tomllib.TOMLDecodeError:
+                value = text
+        if isinstance(value, list):
+            value = tuple(value)
+        out[name] = value
+    return out
 
 
 def _check_writable(path_text: str, option: str) -> None:
@@ -254,33 +303,21 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     from aligngym.scenarios.campaign import run_campaign
     from aligngym.scenarios.config import ConfigError
-    from aligngym.scenarios.experiments import experiment
+    from aligngym.scenarios.experiments import experiment, experiment_class
     from aligngym.scenarios.report import format_tables, write_outputs
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
     if args.json:
         _check_writable(args.json, "--json")
+    cls = experiment_class(args.paper)
     settings = {} if args.scenario is None else {"scenario": args.scenario}
-    if args.outage is not None:
-        if args.paper != "paper001":
-            raise ConfigError(f"--outage exists for paper001 only, not {args.paper}")
-        settings["outage"] = args.outage
-    for option, paper in (("heading_point", "paper001"), ("coarse", "paper001"),
-                          ("disturbance", "paper000"), ("swing", "paper004"),
-                          ("misalignment", "paper004"), ("case", "paper004"),
-                          ("motion", "paper004")):
-        value = getattr(args, option)
-        if value is not None:
-            if args.paper != paper:
-                raise ConfigError(f"--{option.replace('_', '-')} exists for {paper} only, "
-                                  f"not {args.paper}")
-            settings[option] = value
+    settings.update(_settings_of(cls, args))
     levels = [None]                  # one campaign; paper004 --swing all: one per level
     if settings.get("swing") == "all":
-        from aligngym.scenarios.paper004 import SWING_LEVELS
+        from aligngym.scenarios.experiments.paper004 import SWING_LEVELS
         levels = list(SWING_LEVELS)
-    episodes = args.episodes or DEFAULT_EPISODES[args.paper]
+    episodes = args.episodes or cls.default_episodes
     summaries, elapsed = [], 0.0
     for level in levels:
         exp = experiment(args.paper, args.setup,
@@ -302,7 +339,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             print(f"wrote {path}")
         summaries.append(result.summary())
     if len(levels) > 1 and args.json:
-        from aligngym.scenarios.paper004 import merge_levels
+        from aligngym.scenarios.experiments.paper004 import merge_levels
         Path(args.json).write_text(json.dumps(merge_levels(summaries), indent=2))
         print(f"wrote {args.json}")
     print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s)"
@@ -396,9 +433,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_regress(args: argparse.Namespace) -> int:
-    from aligngym.scenarios.regress import BASELINE_DIR, regress
+    from aligngym.scenarios.regress import BASELINE_DIR, campaigns, regress
 
-    papers = [p.strip() for p in args.papers.split(",") if p.strip()]
+    papers = (list(campaigns()) if args.papers is None
+              else [p.strip() for p in args.papers.split(",") if p.strip()])
     passed, report = regress(papers, update=args.update,
                              directory=args.baselines or BASELINE_DIR, workers=args.workers)
     print(report)

@@ -454,10 +454,10 @@ def _imu_spec(table: dict[str, Any]) -> tuple[str, ImuSpec]:
 
 def _experiment_key(name: str) -> str:
     """The file's experiment key, checked against the registered experiments."""
-    from aligngym.scenarios.registry import PAPERS
-    if name and name not in PAPERS:
+    from aligngym.scenarios.registry import experiment_names
+    if name and name not in experiment_names():
         raise ConfigError(f"experiment = {name!r} is unknown; valid choices: "
-                          + ", ".join(PAPERS))
+                          + ", ".join(experiment_names()))
     return name
 
 

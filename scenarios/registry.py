@@ -7,8 +7,21 @@ from pathlib import Path
 DATA_DIR = Path(__file__).parent / "data"
 """The shipped scenario files."""
 
-PAPERS = ("paper000", "paper001", "paper002", "paper003", "paper004")
-"""Papers with a campaign (``aligngym bench``)."""
+EXPERIMENTS_DIR = Path(__file__).parent / "experiments"
+"""One module per shipped experiment, named as the experiment (paper000 ... paper004)."""
+
+_REGISTERED: dict[str, type] = {}
+"""Experiments registered at run time (``scenarios.experiments.register_experiment``)."""
+
+
+def experiment_names() -> tuple[str, ...]:
+    """Every experiment ``bench``, ``regress`` and a scenario's ``experiment`` key can
+    name: the shipped modules of ``scenarios/experiments/`` (found without importing
+    them) and the registered ones."""
+    import pkgutil
+    shipped = [m.name for m in pkgutil.iter_modules([str(EXPERIMENTS_DIR)])
+               if not m.name.startswith("_")]
+    return tuple(sorted(shipped)) + tuple(sorted(set(_REGISTERED) - set(shipped)))
 
 GENERIC_ENV_ID = "aligngym/Alignment-v0"
 """The env id for any scenario file that names an experiment:

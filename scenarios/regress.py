@@ -26,25 +26,15 @@ from aligngym.scenarios.config import ConfigError
 
 BASELINE_DIR = Path(__file__).resolve().parent / "data" / "baselines"
 
-CAMPAIGNS = {
-    "paper000": {"episodes": 2, "seed": 5, "filters": ["rdghkf", "ekf"],
-                 "experiment": {"fine_duration": 200.0, "starts": ["coarse"]}},
-    "paper001": {"episodes": 2, "seed": 11, "filters": ["lckf", "rakf", "swakf"],
-                 "experiment": {"fine_duration": 300.0}},
-    "paper002": {"episodes": 8, "seed": 3, "filters": ["ekf", "ukf", "sghkf-2", "sghkf-4"]},
-    "paper003": {"episodes": 4, "seed": 7,
-                 "filters": ["kf", "sakf", "makf", "imakf", "makf-n", "kf-sway", "sakf-r",
-                             "makf-r"],
-                 "experiment": {"fine_duration": 300.0}},
-    "paper004": {"episodes": 2, "seed": 13, "filters": ["stukf", "stekf", "ukf-3n", "ekf"],
-                 "experiment": {"fine_duration": 400.0, "rms_start": 300.0}},
-}
-"""The regression campaign of each paper with a campaign: episodes, seed, filters and
-settings of the experiment that differ from its defaults (a shorter fine alignment keeps
-the suite quick; the filters still converge). Filters that diverge on these episodes
-are left out: a diverging filter amplifies last bits without bound, so its numbers are
-not reproducible across machines (ckf on paper 002 does, from the 58.5 deg start; on
-paper 000 ckf and sgkf diverge in some episodes and the large start is left out)."""
+def campaigns() -> dict[str, dict]:
+    """The regression campaign of each experiment that declares one (``Experiment.regress``:
+    episodes, seed, filters and the settings that differ from its defaults; a shorter
+    fine alignment keeps the suite quick, the filters still converge). Filters that
+    diverge on these episodes are left out: a diverging filter amplifies last bits without
+    bound, so its numbers are not reproducible across machines."""
+    from aligngym.scenarios.experiments import regress_campaigns
+    return regress_campaigns()
+
 
 SKIPPED = ("us_per_epoch", "ms_per_epoch")
 """Summary entries that are measurements of this machine, not results."""
@@ -79,7 +69,7 @@ def campaign_metrics(paper: str, workers: int | None = None) -> dict[str, float]
     from aligngym.scenarios.campaign import run_campaign
     from aligngym.scenarios.experiments import experiment
 
-    settings = CAMPAIGNS[paper]
+    settings = campaigns()[paper]
     result = run_campaign(experiment(paper, **settings.get("experiment", {})),
                           episodes=settings["episodes"],
                           seed=settings["seed"], filters=settings["filters"],
@@ -128,16 +118,17 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
     """Run the regression campaigns; with update, store their metrics as the baselines.
     Returns (passed, report): the report has a line per paper and a table of the metrics
     that moved (beyond tolerance first)."""
+    known = campaigns()
     if not papers:
-        raise ConfigError("--papers is empty; valid: " + ", ".join(CAMPAIGNS))
+        raise ConfigError("--papers is empty; valid: " + ", ".join(known))
     if not Path(directory).is_dir() and not update:
         raise ConfigError(f"no baseline directory {directory} (the baselines ship "
                           "with the package in aligngym/scenarios/data/baselines); pass "
                           "--baselines DIR")
-    unknown = [p for p in papers if p not in CAMPAIGNS]
+    unknown = [p for p in papers if p not in known]
     if unknown:
         raise ConfigError(f"--papers: {', '.join(unknown)} unknown; valid: "
-                          + ", ".join(CAMPAIGNS))
+                          + ", ".join(known))
     lines, passed = [], True
     for paper in papers:
         path = baseline_path(paper, directory)
@@ -145,7 +136,7 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
             now = campaign_metrics(paper, workers)
             path.parent.mkdir(parents=True, exist_ok=True)
             tmp = path.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"settings": CAMPAIGNS[paper], "metrics": now},
+            tmp.write_text(json.dumps({"settings": known[paper], "metrics": now},
                                       indent=1, sort_keys=True))
             os.replace(tmp, path)             # atomic: never a truncated baseline
             lines.append(f"{paper}: baseline written ({len(now)} metrics) to {path}")
@@ -156,7 +147,7 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
             stored = json.loads(path.read_text())
         except json.JSONDecodeError as exc:
             raise ConfigError(f"{path} is not valid JSON ({exc}); run with --update") from None
-        if stored.get("settings") != CAMPAIGNS[paper]:
+        if stored.get("settings") != known[paper]:
             raise ConfigError(f"{path} was made with other settings "
                               f"({stored.get('settings')}); run with --update")
         now = campaign_metrics(paper, workers)

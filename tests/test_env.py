@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 from aligngym import scenarios
 from aligngym.scenarios import ENV_IDS
-from aligngym.scenarios.paper003 import run_campaign
+from aligngym.scenarios.experiments.paper003 import run_campaign
 
 SHORT = {"episode_length": 20.0}
 SHIP_ID = "aligngym/ShipSwayRotary-v0"
@@ -179,7 +179,7 @@ def test_env_contract():
 
 def test_evaluate_equals_campaign():
     result = run_campaign(episodes=2, seed=3, filters=["sakf"], progress=False, workers=1,
-                          experiment=scenarios.paper003.Paper003Experiment(fine_duration=60.0))
+                          experiment=scenarios.experiments.paper003.Paper003Experiment(fine_duration=60.0))
     rows = scenarios.evaluate(SHIP_ID, "sakf", episodes=2, seed=3,
                               start_error=result.start_errors["max"], episode_length=60.0)
     from aligngym.scenarios.report import tidy_rows

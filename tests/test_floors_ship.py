@@ -18,7 +18,7 @@ from aligngym.models.earth import OMEGA_IE, normal_gravity
 from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.campaign import episode_seeds, run_filter
 from aligngym.scenarios.experiments import experiment
-from aligngym.scenarios.paper004 import MISALIGNMENTS
+from aligngym.scenarios.experiments.paper004 import MISALIGNMENTS
 from aligngym.sensors.imu import ImuSpec
 
 EXP3 = experiment("paper003")

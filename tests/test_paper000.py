@@ -123,7 +123,7 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
     eps = np.array([1e-5, -0.7e-5, 0.5e-5]) if sensor_errors else np.zeros(3)
     nabla = np.array([1e-2, -0.5e-2, 0.8e-2]) if sensor_errors else np.zeros(3)
     from aligngym.estimators.euler_large import true_state
-    from aligngym.scenarios.paper000 import _rear_path
+    from aligngym.scenarios.experiments.paper000 import _rear_path
     model, i0, S = _model_on_truth(ring, 40.0, 15, [0.0, 0.0, heading_deg * deg],
                                    nominal_mount=nominal, eps=eps, nabla=nabla)
     odo = ring.config.odometer
@@ -244,7 +244,7 @@ def slip_campaign(tmp_path_factory):
     """2 episodes of a 195 s drive with a stop and 65 s still, an odometer slip burst at
     120 s (0.5 m in 0.3 s), the four filters from the coarse start."""
     from aligngym.scenarios.campaign import run_campaign
-    from aligngym.scenarios.paper000 import Paper000Experiment
+    from aligngym.scenarios.experiments.paper000 import Paper000Experiment
     path = short_ring(tmp_path_factory.mktemp("p000"), extra="slips = [[120.0, 0.3, 0.5]]")
     exp = Paper000Experiment(scenario=path, coarse_duration=45.0, starts=("coarse",))
     return run_campaign(exp, episodes=2, seed=4, workers=2, progress=False)
@@ -294,7 +294,7 @@ def test_heading_and_accelerometer_biases_need_the_turns(tmp_path):
     1.2); the horizontal accelerometer biases move off their prior only with the turns
     (to 0.91 of it, against 0.99)."""
     from aligngym.scenarios.campaign import run_campaign
-    from aligngym.scenarios.paper000 import Paper000Experiment
+    from aligngym.scenarios.experiments.paper000 import Paper000Experiment
     sigma = {}
     for radius in (100.0, 20000.0):
         path = short_ring(tmp_path, radius, stop=400.0, duration=400.0)
@@ -310,7 +310,7 @@ def test_heading_and_accelerometer_biases_need_the_turns(tmp_path):
 
 
 def test_paper000_bad_input(tmp_path):
-    from aligngym.scenarios.paper000 import Paper000Experiment
+    from aligngym.scenarios.experiments.paper000 import Paper000Experiment
     path = short_ring(tmp_path)
     with pytest.raises(ConfigError, match=r"the coarse window \[150, 210\] s must lie in "
                                           r"the driving phase"):

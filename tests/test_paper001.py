@@ -20,7 +20,7 @@ from aligngym.models.earth import C_n_e, geodetic_to_ecef
 from aligngym.models.units import deg
 from aligngym.scenarios.campaign import run_campaign
 from aligngym.scenarios.config import ConfigError, load_scenario
-from aligngym.scenarios.paper001 import Paper001Experiment
+from aligngym.scenarios.experiments.paper001 import Paper001Experiment
 from aligngym.scenarios.simulate import simulate
 from aligngym.sensors.gps import heading_from_velocity
 

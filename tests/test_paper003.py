@@ -11,7 +11,7 @@ from scipy.stats import chi2
 from aligngym.models.earth import OMEGA_IE, normal_gravity
 from aligngym.models.units import arcmin, deg, deg_per_h, ug
 from aligngym.scenarios.cli import main
-from aligngym.scenarios.paper003 import (Paper003Experiment, coarse_errors, prepare_episode,
+from aligngym.scenarios.experiments.paper003 import (Paper003Experiment, coarse_errors, prepare_episode,
                                 run_campaign, run_filter)
 from aligngym.sensors.imu import ImuSpec, TriadSpec
 

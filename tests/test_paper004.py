@@ -11,7 +11,7 @@ import pytest
 from aligngym.models.units import deg
 from aligngym.scenarios.campaign import run_campaign
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.paper004 import Paper004Experiment, paper004_summary, run_metrics
+from aligngym.scenarios.experiments.paper004 import Paper004Experiment, paper004_summary, run_metrics
 
 SHORT = {"fine_duration": 400.0, "rms_start": 300.0}
 
@@ -132,7 +132,7 @@ def test_swing_levels_and_cases_reach_the_scenario():
 def test_swing_levels_merge_into_one_json(campaign):
     """--swing all: each level's summary nests under its level, per filter."""
     from copy import deepcopy
-    from aligngym.scenarios.paper004 import merge_levels
+    from aligngym.scenarios.experiments.paper004 import merge_levels
     moderate = paper004_summary(campaign)
     severe = deepcopy(moderate)
     for per_level in severe["fine"].values():
@@ -149,7 +149,7 @@ def test_swing_levels_merge_into_one_json(campaign):
 def test_wave_driven_boat_sea_states_reach_the_scenario():
     """--motion waves: the wave-driven boat, its sea set by the swing level; the still
     turntable and a scenario of the other world are one-line errors."""
-    from aligngym.scenarios.paper004 import SEA_STATES
+    from aligngym.scenarios.experiments.paper004 import SEA_STATES
     from aligngym.scenarios.experiments import experiment
     severe = experiment("paper004", motion="waves", swing="severe").scenario_config()
     assert severe.world == "ship-waves" and severe.name == "usv-mems-waves"

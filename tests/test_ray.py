@@ -11,7 +11,7 @@ import ray
 from aligngym.scenarios.campaign import episode_seeds, run_campaign
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.experiments import experiment
-from aligngym.scenarios.paper002 import Paper002Experiment
+from aligngym.scenarios.experiments.paper002 import Paper002Experiment
 
 SMALL = dict(episodes=3, seed=4, filters=["ekf"], progress=False)
 

@@ -54,7 +54,7 @@ def campaigns(tmp_path_factory):
     for paper, (settings, filters, episodes) in CAMPAIGNS.items():
         if paper == "paper001":
             settings = {**settings, "scenario": scenario_file}
-        module = importlib.import_module(f"aligngym.scenarios.{paper}")
+        module = importlib.import_module(f"aligngym.scenarios.experiments.{paper}")
         seen = []
         with pytest.MonkeyPatch.context() as mp:
             original = module.nees

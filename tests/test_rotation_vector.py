@@ -182,7 +182,7 @@ def figure8_inputs(tmp_path_factory):
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).parent))
     from test_paper001 import short_scenario
-    from aligngym.scenarios.paper001 import Paper001Experiment, model_inputs
+    from aligngym.scenarios.experiments.paper001 import Paper001Experiment, model_inputs
     from aligngym.models.units import deg
     exp = Paper001Experiment(scenario=short_scenario(tmp_path_factory.mktemp("p004")),
                              coarse_duration=30.0)

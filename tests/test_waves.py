@@ -121,7 +121,7 @@ def test_heave_velocity_is_the_narrow_band_process_of_kf_sway(seed):
     sea state): the autocorrelation of a realised sea's heave velocity,
     sum c_i cos(w_i tau) / sum c_i with c_i = a_i^2 w_i^2 |H_i|^2, follows the
     oscillator's exp(-zeta w tau) cos(w tau) within 0.15 over two periods."""
-    from aligngym.scenarios.paper003 import sway_spectrum
+    from aligngym.scenarios.experiments.paper003 import sway_spectrum
     config = load_scenario("ship-waves-rotary")
     spectrum = sway_spectrum(config)
     a, w, _, _ = jonswap_components(config.motion, np.random.default_rng(seed))
@@ -137,7 +137,7 @@ def test_heave_velocity_is_the_narrow_band_process_of_kf_sway(seed):
 def test_wave_measurement_sigma_covers_the_heave_peaks(floating):
     """The derived R: the calm-sea floor along E and N, and along U the margin above the
     expected largest heave-velocity peak, which the measured largest peak matches."""
-    from aligngym.scenarios.paper003 import SWAY_R_FLOOR, SWAY_R_MARGIN, sway_measurement_sigma
+    from aligngym.scenarios.experiments.paper003 import SWAY_R_FLOOR, SWAY_R_MARGIN, sway_measurement_sigma
     _, t, _, velocity = floating
     sigma = sway_measurement_sigma(load_scenario("ship-waves-rotary"), duration=240.0)
     assert sigma[:2] == (SWAY_R_FLOOR, SWAY_R_FLOOR)
@@ -147,7 +147,7 @@ def test_wave_measurement_sigma_covers_the_heave_peaks(floating):
 
 
 def test_paper003_pipeline_runs_on_the_wave_driven_ship():
-    from aligngym.scenarios.paper003 import Paper003Experiment, coarse_errors, run_campaign
+    from aligngym.scenarios.experiments.paper003 import Paper003Experiment, coarse_errors, run_campaign
     result = run_campaign(episodes=1, seed=0, filters=["kf"], progress=False, workers=1,
                           experiment=Paper003Experiment(scenario="ship-waves-rotary",
                                                         fine_duration=120.0))

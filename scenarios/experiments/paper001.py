@@ -83,6 +83,8 @@ class Paper001Experiment(Experiment):
     default_filters: tuple[str, ...] = SCHEMES
 
     paper = "001"
+    regress = {"episodes": 2, "seed": 11, "filters": ["lckf", "rakf", "swakf"],
+               "experiment": {"fine_duration": 300.0}}
     worlds = ("car",)
     model_variants = ("position-velocity",)
     state_count = 15
@@ -528,3 +530,7 @@ def format_tables(result: CampaignResult) -> str:
                 lines.append(f"{name:8s}t={o['time_s']:7.1f} s{o['horizontal_error_before_m']:9.3f}"
                              f"{o['horizontal_error_after_m']:9.3f}  {w}")
     return "\n".join(lines)
+
+
+EXPERIMENT = Paper001Experiment
+"""This module's experiment (``scenarios.experiments``)."""

@@ -142,6 +142,11 @@ class Paper003Experiment(Experiment):
     setup: str = "default"
 
     paper = "003"
+    regress = {"episodes": 4, "seed": 7,
+               "filters": ["kf", "sakf", "makf", "imakf", "makf-n", "kf-sway", "sakf-r",
+                           "makf-r"],
+               "experiment": {"fine_duration": 300.0}}
+    setups = {"paper": PAPER_SETUP}
     worlds = ("ship-prescribed", "ship-waves")
     state_count = 12
     starts = STARTS
@@ -356,3 +361,7 @@ def run_campaign(episodes: int = 50, seed: int = 0, filters: list[str] | None = 
     """Run the paper-003 experiment (``scenarios.campaign.run_campaign``)."""
     return campaign.run_campaign(experiment or Paper003Experiment(), episodes, seed,
                                  filters, out_dir, resume, workers, progress)
+
+
+EXPERIMENT = Paper003Experiment
+"""This module's experiment (``scenarios.experiments``)."""

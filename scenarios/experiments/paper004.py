@@ -112,6 +112,8 @@ class Paper004Experiment(Experiment):
     default_filters: tuple[str, ...] = FILTERS
 
     paper = "004"
+    regress = {"episodes": 2, "seed": 13, "filters": ["stukf", "stekf", "ukf-3n", "ekf"],
+               "experiment": {"fine_duration": 400.0, "rms_start": 300.0}}
     worlds = ("ship-prescribed", "ship-waves")
     model_variants = ("st", "st-linear")
     state_count = 15
@@ -504,3 +506,6 @@ def consistency_plot(result: CampaignResult, out) -> list:
     plt.close(fig)
     return [path]
 
+
+EXPERIMENT = Paper004Experiment
+"""This module's experiment (``scenarios.experiments``)."""
