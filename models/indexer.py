@@ -21,7 +21,6 @@ from typing import Callable
 import mujoco
 import numpy as np
 from mujoco import rollout
-from scipy.interpolate import make_interp_spline
 
 
 @dataclass(frozen=True)
@@ -141,6 +140,7 @@ class IndexerMotion:
         if not (np.all(np.isfinite(angle)) and np.all(np.isfinite(rate))):
             raise FloatingPointError("the indexer servo simulation produced non-finite "
                                      "angles")
+        from scipy.interpolate import make_interp_spline   # lazy: reading a scenario stays light
         return cls(t=t, angle=angle, rate=rate, command=command,
                    spline=make_interp_spline(t, angle, k=5))
 

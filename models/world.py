@@ -26,7 +26,6 @@ from typing import Callable
 import mujoco
 import numpy as np
 from mujoco import rollout
-from scipy.interpolate import make_interp_spline
 
 from aligngym.models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
                              rotvec_to_dcm, rotvec_to_quat, skew)
@@ -437,6 +436,7 @@ class SmoothRun:
     """
 
     def __init__(self, run: DiscreteRun) -> None:
+        from scipy.interpolate import make_interp_spline   # lazy: reading a scenario stays light
         self.run = run
         self.dt = run.dt
         self.t = run.t

@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.signal import lfilter
 
 from aligngym.models.units import deg_per_h, deg_per_sqrt_h, m_per_s_per_sqrt_h, mg, ug
 
@@ -219,6 +218,7 @@ def _triad_errors(x: np.ndarray, dt: float, spec: TriadSpec, real: TriadRealizat
         phi = math.exp(-dt / spec.correlation_time)
         drive = sigma * math.sqrt(1.0 - phi * phi) * rng.standard_normal((m, 3))
         drive[0] = sigma * rng.standard_normal(3)
+        from scipy.signal import lfilter   # lazy: reading a scenario stays light
         y += dt * lfilter([1.0], [1.0, -phi], drive, axis=0)
     if spec.random_walk > 0.0:
         steps = spec.random_walk * math.sqrt(dt) * rng.standard_normal((m, 3))
