@@ -8,7 +8,8 @@ import time
 import numpy as np
 
 from aligngym.scenarios.config import load_scenario
-from aligngym.scenarios.render import SceneRenderer, render_video
+from aligngym.scenarios.render import SceneRenderer
+from aligngym.scenarios.video import render_video
 
 SCENARIOS = ("ship-sway-rotary", "usv-mems-swing", "ship-waves-rotary", "usv-mems-waves",
              "static-large-azimuth", "ring-road-odometer", "figure8-gps")

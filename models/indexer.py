@@ -42,7 +42,7 @@ class IndexerSpec:
     servo_step: float = 2e-3
 
     def __post_init__(self) -> None:
-        from aligngym.sensors import number_rows
+        from aligngym.models.checks import number_rows
         object.__setattr__(self, "stops", tuple(float(s) for s in np.atleast_1d(
             np.asarray(self.stops, dtype=float))))
         object.__setattr__(self, "schedule", number_rows(self.schedule, 2, "indexer.schedule",

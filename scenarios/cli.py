@@ -389,7 +389,8 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
 
 def _cmd_render(args: argparse.Namespace) -> int:
     from aligngym.scenarios.config import ConfigError, load_scenario
-    from aligngym.scenarios.render import check_size, render_video
+    from aligngym.scenarios.render import check_size
+    from aligngym.scenarios.video import render_video
 
     try:
         size = tuple(int(v) for v in args.size.lower().split("x"))

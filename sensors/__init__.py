@@ -1,16 +1,4 @@
 """Sensor plugins: IMU (gyro + accelerometer), gimbal encoders, odometer, GPS."""
 from __future__ import annotations
 
-import math
-
-
-def number_rows(value, width: int, field: str, shape: str) -> tuple[tuple[float, ...], ...]:
-    """A scenario file's list of rows of ``width`` finite numbers (fault windows and the
-    like) as a tuple of float tuples; ValueError naming the field and the row shape."""
-    try:
-        rows = tuple(tuple(float(v) for v in row) for row in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{field} must be a list of {shape} rows of numbers") from None
-    if any(len(row) != width or not all(math.isfinite(v) for v in row) for row in rows):
-        raise ValueError(f"{field} must be a list of {shape} rows of finite numbers")
-    return rows
+from aligngym.models.checks import number_rows  # noqa: F401  (the sensors' tables use it)

@@ -137,7 +137,7 @@ def test_an_estimator_needs_a_pipeline(tmp_path):
     its file's, is a one-line error before any work."""
     from dataclasses import replace
 
-    from aligngym.scenarios.render import render_video
+    from aligngym.scenarios.video import render_video
     from aligngym.scenarios.registry import DATA_DIR
     path = tmp_path / "mine.toml"
     text = (DATA_DIR / "ship-sway-rotary.toml").read_text()
