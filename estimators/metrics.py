@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.models.attitude import dcm_to_euler, dcm_to_rotvec
+from aligngym.models.earth import OMEGA_IE, normal_gravity
 
 
 def misalignment(C_true: np.ndarray, C_est: np.ndarray) -> np.ndarray:
@@ -52,3 +53,19 @@ class DivergenceRule:
         out = [r if f else (f"final error > {self.ratio:g} x 3 sigma" if l else "")
                for f, l, r in zip(flagged, lost, reasons)]
         return flagged | lost, out
+
+
+def static_alignment_floor(C_to_n: np.ndarray, gyro_bias: np.ndarray,
+                           accel_bias: np.ndarray, lat: float, h: float = 0.0
+                           ) -> np.ndarray:
+    """The misalignment phi E, N, U (..., 3) rad that constant sensor biases leave in a
+    static self-alignment (the physical floor): phi_E = -nabla_N/g, phi_N = nabla_E/g,
+    phi_U = -eps_E/(Omega cos L) + phi_N tan L, with the gyro drift (rad/s) and the
+    accelerometer bias (m/s^2) given in the frame C_to_n (..., 3, 3) maps to ENU, at
+    latitude lat (rad) and height h (m)."""
+    eps_n = np.einsum("...ij,...j->...i", C_to_n, gyro_bias)
+    nabla_n = np.einsum("...ij,...j->...i", C_to_n, accel_bias)
+    g = normal_gravity(lat, h)
+    phi_N = nabla_n[..., 0] / g
+    return np.stack([-nabla_n[..., 1] / g, phi_N,
+                     -eps_n[..., 0] / (OMEGA_IE * np.cos(lat)) + phi_N * np.tan(lat)], -1)

@@ -179,6 +179,12 @@ class Experiment(ABC):
             cached = self.__dict__["_scenario_file"] = load_scenario(self.scenario)
         return cached
 
+    def holding(self, loaded: ScenarioConfig) -> "Experiment":
+        """This experiment with its scenario file already loaded (``loaded``, the file
+        ``self.scenario`` names, as ``load_scenario`` gave it): not parsed again."""
+        self.__dict__["_scenario_file"] = loaded
+        return self
+
     def scenario_config(self) -> ScenarioConfig:
         """The scenario (a shipped name or a .toml path), with the experiment's
         duration; its world and [filter] table checked against the experiment. Loaded

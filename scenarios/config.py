@@ -197,14 +197,14 @@ class ScenarioConfig:
     """Frame in which the drawn constant biases are constant: "sensor" (they turn with a
     rotary IMU, which modulates them) or "hull" (no modulation)."""
     filter: tuple[tuple[str, Any], ...] = ()
+    """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
+    scenario's experiment validates (e.g. paper 002's initial_covariance)."""
     faults: ImuFaults = ImuFaults()
     experiment: str = ""
     """The pipeline that runs on this scenario (the file's ``experiment`` key, e.g.
     "paper003"; "" for none): the only map from a scenario to its experiment."""
     source: str = field(default="", compare=False)
     """The file it was read from."""
-    """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
-    scenario's experiment validates (e.g. paper 002's initial_covariance)."""
 
     def with_options(self, duration: float | None = None, imu_rate: float | None = None
                      ) -> "ScenarioConfig":

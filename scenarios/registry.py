@@ -23,6 +23,7 @@ def experiment_names() -> tuple[str, ...]:
                if not m.name.startswith("_")]
     return tuple(sorted(shipped)) + tuple(sorted(set(_REGISTERED) - set(shipped)))
 
+
 GENERIC_ENV_ID = "aligngym/Alignment-v0"
 """The env id for any scenario file that names an experiment:
 ``gym.make(GENERIC_ENV_ID, scenario="path/to/my.toml", ...)``."""

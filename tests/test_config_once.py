@@ -21,3 +21,17 @@ def test_a_two_episode_campaign_loads_its_scenario_once(monkeypatch, paper, sett
     result.summary()
     exp.format_tables(result)
     assert len(loads) == 1, loads
+
+
+def test_the_env_loads_a_scenario_file_once(monkeypatch, tmp_path):
+    """experiment_for reads the file to find its experiment and hands it over: the env's
+    experiment does not parse it again."""
+    from aligngym.scenarios.experiments import experiment_for
+    loads = []
+    build = config._build
+    monkeypatch.setattr(config, "_build", lambda raw, source: loads.append(source)
+                        or build(raw, source))
+    exp = experiment_for("static-large-azimuth", fine_duration=20.0)
+    exp.scenario_config()
+    exp.tuning()
+    assert len(loads) == 1, loads

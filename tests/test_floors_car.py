@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from aligngym.estimators.metrics import static_alignment_floor
 from aligngym.models.earth import normal_gravity
 from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign import episode_seeds, run_filter
@@ -187,10 +188,10 @@ def level_floor_000(run, car: Car) -> tuple[np.ndarray, np.ndarray]:
 def static_floor_000(car: Car) -> np.ndarray:
     """The static-base level floor of the drawn accelerometer bias, (B, 2) rad."""
     eps = car.episodes
-    g = normal_gravity(eps[0].lat, eps[0].h)
-    n = np.einsum("bij,bj->bi", np.stack([e.C_s_n_true[-1] for e in eps]),
-                  np.stack([e.accel_bias for e in eps]))
-    return np.stack([-n[:, 1] / g, n[:, 0] / g], -1)
+    return static_alignment_floor(np.stack([e.C_s_n_true[-1] for e in eps]),
+                                  np.stack([e.gyro_bias for e in eps]),
+                                  np.stack([e.accel_bias for e in eps]), eps[0].lat,
+                                  eps[0].h)[:, :2]
 
 
 ISSUE27_CKF = ("issue 27: ckf diverges from the 30 deg heading prior (its points at "

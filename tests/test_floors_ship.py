@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.estimators.metrics import static_alignment_floor
 from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.campaign import episode_seeds, run_filter
 from aligngym.scenarios.experiments import experiment
@@ -135,14 +135,9 @@ def test_003_error_free_sensors_under_the_sway_leave_no_systematic_error(ship, n
 
 def unmodulated_floor(episode) -> np.ndarray:
     """phi E, N, U (rad) that the episode's drawn biases would leave on a still base
-    without the rotation, at the last epoch's attitude: level -nabla_N/g, nabla_E/g,
-    heading -eps_E/(Omega cos L) + phi_N tan L (biases rotated to n)."""
-    C = episode.C_s_n_true[-1]
-    eps_n, nabla_n = C @ episode.gyro_bias, C @ episode.accel_bias
-    g = normal_gravity(episode.lat, episode.h)
-    phi_N = nabla_n[0] / g
-    return np.array([-nabla_n[1] / g, phi_N, -eps_n[0] / (OMEGA_IE * np.cos(episode.lat))
-                     + phi_N * np.tan(episode.lat)])
+    without the rotation, at the last epoch's attitude (biases rotated to n)."""
+    return static_alignment_floor(episode.C_s_n_true[-1], episode.gyro_bias,
+                                  episode.accel_bias, episode.lat, episode.h)
 
 
 @pytest.mark.parametrize("start", ["mean", "max"])

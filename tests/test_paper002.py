@@ -15,7 +15,7 @@ from aligngym.estimators.alignment import run_alignment
 from aligngym.estimators.euler_large import (PAPER002, C_p_n, EulerLargeMisalignmentModel,
                                     SmallAngleModel, stack_integrals)
 from aligngym.estimators.filters import make_filter
-from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.estimators.metrics import static_alignment_floor
 from aligngym.models.units import arcmin, deg, deg_per_h, ug
 from aligngym.scenarios.campaign import analyse_run, episode_seeds, prepare_all
 from aligngym.scenarios.cli import main
@@ -43,14 +43,9 @@ def run(name, exp, ep, model=None):
 
 
 def static_floor(ep):
-    """Static self-alignment floors phi E, N, U (rad): phi_E = -b_N/g, phi_N = b_E/g,
-    phi_U = -eps_E/(Omega cos L) + phi_N tan L."""
-    C = ep.C_s_n_true[-1]
-    eps_n, nabla_n = C @ ep.gyro_bias, C @ ep.accel_bias
-    g = normal_gravity(ep.lat, ep.h)
-    phi_N = nabla_n[0] / g
-    return np.array([-nabla_n[1] / g, phi_N,
-                     -eps_n[0] / (OMEGA_IE * np.cos(ep.lat)) + phi_N * np.tan(ep.lat)])
+    """The episode's static self-alignment floors phi E, N, U (rad)."""
+    return static_alignment_floor(ep.C_s_n_true[-1], ep.gyro_bias, ep.accel_bias, ep.lat,
+                                  ep.h)
 
 
 @pytest.fixture(scope="module")

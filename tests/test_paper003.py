@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.estimators.metrics import static_alignment_floor
+from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import arcmin, deg, deg_per_h, ug
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.experiments.paper003 import (Paper003Experiment, coarse_errors, prepare_episode,
@@ -49,14 +50,9 @@ def static_runs(experiment):
 
 
 def bias_floor(episode):
-    """Static self-alignment floors phi E, N, U (rad), ENU: phi_E = -b_N/g,
-    phi_N = b_E/g, phi_U = -eps_E/(Omega cos L) + phi_N tan L."""
-    C = episode.C_s_n_true[-1]
-    eps_n, nabla_n = C @ episode.gyro_bias, C @ episode.accel_bias
-    g = normal_gravity(episode.lat, episode.h)
-    phi_N = nabla_n[0] / g
-    return np.array([-nabla_n[1] / g, phi_N, -eps_n[0] / (OMEGA_IE * np.cos(episode.lat))
-                     + phi_N * np.tan(episode.lat)])
+    """Static self-alignment floors phi E, N, U (rad), ENU, of the sensor-frame biases."""
+    return static_alignment_floor(episode.C_s_n_true[-1], episode.gyro_bias,
+                                  episode.accel_bias, episode.lat, episode.h)
 
 
 def test_static_non_rotating_converges_to_the_bias_floor(static_runs):
@@ -231,12 +227,8 @@ def test_paper_setup_converges_to_the_unmodulated_bias_floors(name):
     config = calm(exp.scenario_config(), imu=CONSTANT_BIASES)
     assert config.imu_bias_frame == "hull"
     episode = prepare_episode(exp, 3, config=config)
-    C = episode.C_b_n_true[-1]
-    g = normal_gravity(episode.lat, episode.h)
-    eps_n, nabla_n = C @ episode.gyro_bias, C @ episode.accel_bias
-    phi_N = nabla_n[0] / g
-    floor = np.array([-nabla_n[1] / g, phi_N, -eps_n[0] / (OMEGA_IE * np.cos(episode.lat))
-                      + phi_N * np.tan(episode.lat)])
+    floor = static_alignment_floor(episode.C_b_n_true[-1], episode.gyro_bias,   # hull frame
+                                   episode.accel_bias, episode.lat, episode.h)
     run = run_filter(name, "x", np.array([0.1, -0.1, 1.0]) * deg, [episode], exp)
     np.testing.assert_allclose(run.error_n[0, -1], floor, rtol=0.05)
 

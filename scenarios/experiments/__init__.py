@@ -73,4 +73,4 @@ def experiment_for(scenario: str, **settings) -> "Experiment":
         raise ConfigError(f"scenario {config.name!r} names no experiment (its file has no "
                           "experiment key; valid: " + ", ".join(experiment_names()) + "); shipped "
                           "scenarios with one: " + ", ".join(sorted(SCENARIO_PAPER)))
-    return experiment(config.experiment, scenario=scenario, **settings)
+    return experiment(config.experiment, scenario=scenario, **settings).holding(config)

@@ -334,8 +334,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
 
 
 def model_inputs(episodes: list[Paper000Episode], start_error: np.ndarray,
-                 start_velocity: str = "drawn", velocity_sigma: float = 0.1
-                 ) -> OdometerInputs:
+                 start_velocity: str, velocity_sigma: float) -> OdometerInputs:
     """The model's inputs; each INS starts from the true attitude turned by its Euler error
     (E, N, U, rad: C_b^n' = C_p_n(phi)^T C_b^n), the known start position and, by
     ``start_velocity``, the true velocity plus a draw of ``velocity_sigma`` (m/s, per ENU
