@@ -14,11 +14,19 @@ over a batch of independent episodes, with the state's mean (B, n) and covarianc
 campaign (``run_campaign``), ``scenarios.evaluate`` and the env accept its name; on the
 command line, ``--filters module.path:factory`` does the same without code in this
 package (factory() returns a ``FilterEntry`` or an ``IntegrationRule``).
+
+Importing ``aligngym`` registers its gymnasium ids (``aligngym.envs``):
+``aligngym/<Scenario>-v0`` per shipped scenario and ``aligngym/Alignment-v0`` for any
+scenario file.
 """
 from __future__ import annotations
 
 import importlib
 from typing import Any
+
+from aligngym.envs import register_envs
+
+register_envs()
 
 _EXPORTS = {
     "AdaptationContext": "aligngym.estimators.adaptation",

@@ -14,7 +14,7 @@ import time
 import gymnasium as gym
 import numpy as np
 
-from aligngym import scenarios  # noqa: F401  (registers the env ids)
+import aligngym  # noqa: F401  (registers the env ids)
 
 MISTUNED = {"measurement": 0.01}
 TEST_SEEDS = (21, 22, 23)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import gymnasium as gym
 
-from aligngym import scenarios  # noqa: F401  (registers the env ids)
+import aligngym  # noqa: F401  (registers the env ids)
 
 MISTUNED = {"measurement": 0.01}
 

@@ -40,7 +40,7 @@ def tune_scenario(scenario: str, episode_length: float, iterations: int,
                   population: int) -> list[dict]:
     import gymnasium as gym
 
-    from aligngym import scenarios  # noqa: F401  (registers the env ids)
+    import aligngym  # noqa: F401  (registers the env ids)
     from aligngym.scenarios.registry import env_id
     from tune_agent import cross_entropy_search
 

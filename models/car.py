@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from aligngym.models.scene import (DRESSING, INSTRUMENTS, VISUAL, fmt, geom, imu_axes, mesh_asset,
@@ -494,6 +493,7 @@ class CarWorld:
                  draw_track: bool = False) -> None:
         """draw_track: add the drawn road and lanes (visual meshes, for pictures; the
         simulation is the same without them, and cheaper to build)."""
+        import mujoco
         self.params, self.track, self.profile = params, track, profile
         reach = np.abs(track.points).max() + 30.0
         xml, assets = car_mjcf(params, roughness_seed, extent=float(reach),
@@ -509,6 +509,7 @@ class CarWorld:
 
     def _settle(self, seconds: float = 2.0) -> None:
         """Let the suspension settle at rest before time zero (brakes on)."""
+        import mujoco
         m, d = self.model, self.data
         for _ in range(int(seconds / m.opt.timestep)):
             d.ctrl[:] = 0.0
@@ -521,6 +522,7 @@ class CarWorld:
 
     def run(self, duration: float) -> DiscreteRun:
         """Drive for duration (s), recording every physics step."""
+        import mujoco
         m, d, p = self.model, self.data, self.params
         dt = m.opt.timestep
         n = int(round(duration / dt))

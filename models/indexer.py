@@ -18,9 +18,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Callable
 
-import mujoco
 import numpy as np
-from mujoco import rollout
 
 
 @dataclass(frozen=True)
@@ -161,6 +159,7 @@ def simulate_indexer(spec: IndexerSpec, duration: float,
     """Run the servo over [0, duration] s (``mujoco.rollout``) following the command, with
     the hull's angular acceleration about the indexer axis (rad/s^2 at times (N,) s) as
     the rotor's base excitation. The rotor starts at rest at the first command angle."""
+    import mujoco
     model = mujoco.MjModel.from_xml_string(servo_mjcf(spec))
     data = mujoco.MjData(model)
     h = spec.servo_step
@@ -174,6 +173,7 @@ def simulate_indexer(spec: IndexerSpec, duration: float,
     full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, full))
     mujoco.mj_getState(model, data, state0, full)
+    from mujoco import rollout
     states, _ = rollout.rollout(model, data, state0[None], ctrl[None])
     return IndexerMotion.from_steps(t, np.concatenate([[ctrl[0, 0]], states[0, :, 1]]),
                                     np.concatenate([[0.0], states[0, :, 2]]),

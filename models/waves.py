@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from aligngym.models.indexer import IndexerMotion, IndexerSpec
@@ -189,6 +188,7 @@ class WaveShipWorld:
         the hydrodynamic wrench (held in between). Every step by default: a wrench held
         over 10 ms steps the acceleration at the IMU's own rate, which a strapdown's
         sculling term rectifies (0.63 mm/s over 120 s, against 0.005 mm/s)."""
+        import mujoco
         if motion.indexer is not None and abs(motion.indexer.servo_step - timestep) > 1e-12:
             raise ValueError(f"indexer.servo_step = {motion.indexer.servo_step:g} s: the "
                              f"wave-driven hull's servo steps with the physics, {timestep:g} s")
@@ -233,6 +233,7 @@ class WaveShipWorld:
 
     def _hull_inertia(self) -> np.ndarray:
         """Principal moments (3,) kg m^2 of the whole ship about its centre of mass."""
+        import mujoco
         mujoco.mj_forward(self.model, self.data)
         return self.model.body_inertia[self._hull].copy() * (
             self.model.body_subtreemass[self._hull] / self.model.body_mass[self._hull])
@@ -266,6 +267,7 @@ class WaveShipWorld:
         the hull; its recorded motion is the run's ``gimbal``. The wrench is computed
         from the state at the start of each step (between ``mj_step1`` and
         ``mj_step2``) every force_period steps."""
+        import mujoco
         m, d, motion = self.model, self.data, self.motion
         dt = m.opt.timestep
         n = int(round(duration / dt))

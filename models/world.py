@@ -21,14 +21,15 @@ import copy
 import os
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-import mujoco
 import numpy as np
-from mujoco import rollout
 
 from aligngym.models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rot_x, rot_z,
                              rotvec_to_dcm, rotvec_to_quat, skew)
+
+if TYPE_CHECKING:                   # MuJoCo is loaded when a world is built
+    import mujoco
 
 
 @dataclass(frozen=True)
@@ -213,6 +214,7 @@ def kinematic_twin(model: mujoco.MjModel) -> mujoco.MjModel:
     qfrc = KINEMATIC_ARMATURE qacc exactly: bodies of 1e-12 kg and 1e-15 kg m^2, joints
     of armature KINEMATIC_ARMATURE, constraints, contacts, springs, dampers, actuators and
     warm starts off, Euler integration (the step's result is not used)."""
+    import mujoco
     twin = copy.deepcopy(model)
     twin.body_mass[1:] = 1e-12
     twin.body_inertia[1:] = 1e-15
@@ -237,6 +239,7 @@ class PrescribedWorld(ABC):
     gimbal_joints: tuple[str, str] | None = None
 
     def __init__(self, mjcf: str) -> None:
+        import mujoco
         self.model = mujoco.MjModel.from_xml_string(mjcf)
         self.data = mujoco.MjData(self.model)
         self._twin = kinematic_twin(self.model)
@@ -254,6 +257,7 @@ class PrescribedWorld(ABC):
 
     def sample(self, t: np.ndarray) -> WorldSamples:
         """Run MuJoCo at times t (N,) s and read the IMU kinematics."""
+        import mujoco
         t = np.asarray(t, dtype=float)
         qpos, qvel, qacc = self.joint_state(t)
         m, twin = self.model, self._twin
@@ -264,6 +268,7 @@ class PrescribedWorld(ABC):
         state[:, 1 + m.nq:1 + m.nq + m.nv] = qvel
         force = (KINEMATIC_ARMATURE * qacc)[:, None, :]
         threads = [mujoco.MjData(twin) for _ in range(min(ROLLOUT_THREADS, t.size))]
+        from mujoco import rollout
         _, sensordata = rollout.rollout(twin, threads, state, force, nstep=1,
                                         control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED.value)
         sensordata = sensordata[:, 0]

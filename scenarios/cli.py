@@ -9,6 +9,7 @@ import argparse
 import math
 import sys
 import time
+from dataclasses import fields
 from typing import NoReturn, Sequence
 
 from aligngym.scenarios.registry import SCENARIO_PAPER, experiment_names, scenario_names
@@ -63,19 +64,60 @@ def _seed(text: str) -> int:
     return value
 
 
-def _bench_epilog() -> str:
-    """Papers, filters and scenarios ``bench`` knows (imports the filter catalogue)."""
+def _bench_epilog(experiment: type | None) -> str:
+    """What ``bench --help`` lists besides the options: the experiments, the filters and
+    the scenarios with a pipeline; with an experiment, its other settings (--set)."""
     from aligngym.estimators.filters import filter_names
-    return ("experiments: " + ", ".join(experiment_names()) + "\nfilters: " + ", ".join(filter_names())
-            + "\nscenarios with a pipeline: "
-            + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
-            + "\n--scenario takes any scenario name or .toml whose world the paper runs on: "
-            "car for paper000 and paper001, ship-prescribed or ship-waves for paper003, static-platform "
-            "for paper002, ship-prescribed or ship-waves with an [indexer] and a [gps] table for paper004")
+    lines = ["experiments: " + ", ".join(experiment_names()), "filters: " + ", ".join(filter_names()),
+             "scenarios with a pipeline: "
+             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))]
+    if experiment is not None:
+        flagged = {f.name for f in experiment.flagged_settings()}
+        lines.append("--set NAME=VALUE settings (default): " + ", ".join(
+            f"{f.name} ({f.default!r})" for f in fields(experiment)
+            if f.name not in flagged | {"scenario", "default_filters"}))
+        lines.append("(their meaning and units: the docstring of "
+                     f"{experiment.__module__}.{experiment.__name__})")
+    return "\n".join(lines)
 
 
-def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
-    """The parser; bench_details: list the filters in ``bench --help`` (imports them)."""
+def _number_option(flag: str, minimum: float | None):
+    """Parser of a finite number >= minimum (any finite number without one)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} must be a number, got {text!r}") from None
+        if not math.isfinite(value) or (minimum is not None and value < minimum):
+            bound = "finite" if minimum is None else f">= {minimum:g}"
+            raise argparse.ArgumentTypeError(f"{flag} must be {bound}, got {text}")
+        return value
+    return parse
+
+
+def _add_setting_options(bench: argparse.ArgumentParser, experiment: type) -> None:
+    """The experiment's declared settings (``campaign.setting``) as bench options of their
+    own: --NAME with the declared choices (and "all" for a sweep) or a number."""
+    group = bench.add_argument_group(f"settings of {experiment.__name__}")
+    for f in experiment.flagged_settings():
+        meta, flag = f.metadata, "--" + f.name.replace("_", "-")
+        kwargs: dict = {"dest": f.name, "default": None}
+        if meta["choices"]:
+            kwargs["choices"] = list(meta["choices"]) + (["all"] if meta["sweep"] else [])
+        elif isinstance(f.default, (int, float)):
+            kwargs["type"] = _number_option(flag, meta["minimum"])
+            kwargs["metavar"] = meta["unit"].upper() or "X"
+        default = f.default if f.default not in ("", None) else "none"
+        tail = (", or all in turn" if meta["sweep"] else "") + f"; default: {default}"
+        group.add_argument(flag, help=meta["doc"] + (f", {meta['unit']}" if meta["unit"] else "")
+                           + tail, **kwargs)
+
+
+def build_parser(bench_details: bool = False, experiment: type | None = None
+                 ) -> argparse.ArgumentParser:
+    """The parser; bench_details: list the filters in ``bench --help`` (imports them);
+    experiment: the Experiment class bench names, whose declared settings become options
+    (imported only when bench names one)."""
     parser = _Parser(prog="aligngym", description="SINS initial-alignment scenario testbed")
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", parser_class=_Parser, metavar="COMMAND")
@@ -102,66 +144,38 @@ def build_parser(bench_details: bool = False) -> argparse.ArgumentParser:
                      help="episode seed (>= 0; default: 0)")
     fid.add_argument("--imu-rate", type=_float_option("--imu-rate"), metavar="HZ",
                      help="IMU output rate, Hz (default: the scenario's)")
-    bench = sub.add_parser("bench", help="run a paper's Monte Carlo comparison",
-                           epilog=_bench_epilog() if bench_details else None,
+    bench = sub.add_parser("bench", help="run an experiment's Monte Carlo comparison",
+                           epilog=_bench_epilog(experiment) if bench_details else None,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    defaults = {} if experiment is None else {f.name: f.default for f in fields(experiment)}
     bench.add_argument("paper", choices=list(experiment_names()), metavar="EXPERIMENT",
-                       help="the experiment: " + ", ".join(experiment_names()))
+                       help="the experiment: " + ", ".join(experiment_names())
+                       + "; 'bench EXPERIMENT --help' lists its settings")
     bench.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
-                       help="Monte Carlo episodes (default: the experiment's, 100 for "
-                       "paper002, 50 for the others)")
+                       help="Monte Carlo episodes (default: the experiment's"
+                       + ("" if experiment is None else f", {experiment.default_episodes}")
+                       + ")")
     bench.add_argument("--setup", default="default", metavar="NAME",
-                       help="a named setup of the experiment; paper003's 'paper' reproduces "
-                       "the paper's setup (biases fixed in the hull frame, calm-sea R, "
-                       "fading factors on R; README; default: default)")
+                       help="a named setup of the experiment (settings it declares, e.g. "
+                       "paper003's 'paper': the paper's own setup; "
+                       + ("" if experiment is None else "here: " + ", ".join(
+                           ["default", *experiment.setups]) + "; ") + "default: default)")
     bench.add_argument("--set", action="append", metavar="NAME=VALUE",
                        help="any setting of the experiment (a field of its Experiment "
-                       "class, e.g. fine_duration=300, start_velocity=odometer); "
-                       "repeatable")
+                       "class, e.g. fine_duration=300); repeatable")
     bench.add_argument("--scenario", metavar="NAME|FILE.toml",
-                       help="scenario to run the paper's experiment on (default: the "
-                       "paper's: ring-road-odometer for paper000, figure8-gps for "
-                       "paper001, static-large-azimuth for "
-                       "paper002, ship-sway-rotary for paper003, usv-mems-swing for "
-                       "paper004); a .toml may carry a "
-                       "[filter] table")
+                       help="scenario to run the experiment on: a shipped name or a .toml "
+                       "whose world the experiment runs on; a .toml may carry a [filter] "
+                       "table (default: the experiment's"
+                       + (f", {defaults['scenario']}" if defaults.get("scenario") else "")
+                       + ")")
     bench.add_argument("--seed", type=_seed, default=0, metavar="S",
                        help="campaign seed (default: 0)")
-    bench.add_argument("--filters", help="comma-separated filter names (default: "
-                       "sgkf,rdghkf,ckf,ekf for paper000; lckf,rakf,swakf for paper001; "
-                       "ekf,ukf,sghkf-2,sghkf-4 for "
-                       "paper002; kf,sakf,makf,imakf for paper003; stukf,stekf,ukf-3n,ekf for "
-                       "paper004)")
-    bench.add_argument("--outage", type=_float_option("--outage", allow_zero=True), metavar="S",
-                       help="paper001: a GPS outage of S seconds in the middle of the "
-                       "motion phase (default: none)")
-    bench.add_argument("--disturbance", choices=["none", "slip", "all"],
-                       help="paper000: odometer slip bursts (slip), and a rough road as "
-                       "well (all) (default: none)")
-    bench.add_argument("--coarse", choices=["static", "moving"],
-                       help="paper001: the coarse alignment: static analytic in the first "
-                       "60 s, or GPS-velocity-aided over the first 60 s of motion (the "
-                       "filter then starts in motion; default: static)")
-    bench.add_argument("--heading-point", choices=["antenna", "rear-axle"],
-                       help="paper001: the body point whose velocity gives the GPS heading: "
-                       "the antenna (the paper) or the rear axle (no kinematic sideslip; "
-                       "default: antenna)")
-    bench.add_argument("--swing", choices=["mild", "moderate", "severe", "all"],
-                       help="paper004: the boat's swing level (roll/pitch/heading 5/3/2, "
-                       "10/5/3, 22.5/10/5 deg, assumed), or all three in turn (default: "
-                       "moderate)")
-    bench.add_argument("--motion", choices=["prescribed", "waves"],
-                       help="paper004: the boat's prescribed swing (usv-mems-swing) or the "
-                       "wave-driven boat in a random sea whose state the swing level sets "
-                       "(usv-mems-waves) (default: prescribed, or the --scenario's world)")
-    bench.add_argument("--misalignment", choices=["large", "small", "coarse"],
-                       help="paper004: the fine stage's start: uniform within level +-10, "
-                       "heading +-60 deg (large), +-0.1/+-0.5 deg (small), or the "
-                       "GNSS-velocity-aided coarse alignment's result (default: large)")
-    bench.add_argument("--case", choices=["swing", "consistency", "turntable"],
-                       help="paper004: the swing experiments, the consistency study "
-                       "(biases raised to 3.5-4.5 deg/h and 4.5-5.5 mg) or the static "
-                       "turntable (900 s; default: swing)")
+    bench.add_argument("--filters", help="comma-separated filter names (default: the "
+                       "experiment's" + ("" if "default_filters" not in defaults else
+                                         ", " + ",".join(defaults["default_filters"])) + ")")
+    if experiment is not None:
+        _add_setting_options(bench, experiment)
     bench.add_argument("--out", metavar="DIR", help="directory for results.csv, coarse.csv, "
                        "timeseries.npz, tables.txt, summary.json, settings.json, the figures "
                        "and the per-episode files; 'aligngym report DIR' makes a page of it "
@@ -232,34 +246,16 @@ def _positive_int(field: str):
     return parse
 
 
-SETTING_FLAGS = ("outage", "heading_point", "coarse", "disturbance", "swing", "misalignment",
-                 "case", "motion")
-"""bench's named flags, each an experiment setting of the same name (--heading-point:
-heading_point); any other setting is --set NAME=VALUE."""
-
-
 def _settings_of(cls: type, args: argparse.Namespace) -> dict:
-    """The experiment settings bench's flags and --set NAME=VALUE give, each checked to be
+    """The experiment settings bench's options and --set NAME=VALUE give, each checked to be
     a setting (a dataclass field) of the experiment class; VALUE is read as a TOML value
     (number, true/false, "string", [list]), else as a plain string; "none" is None."""
     import tomllib
-    from dataclasses import fields
 
     from aligngym.scenarios.config import ConfigError
-    from aligngym.scenarios.registry import experiment_names
     known = {f.name: f for f in fields(cls)}
-    out = {}
-    for name in SETTING_FLAGS:
-        value = getattr(args, name)
-        if value is not None:
-            if name not in known:
-                from aligngym.scenarios.experiments import experiment_class
-                having = [n for n in experiment_names()
-                          if name in {f.name for f in fields(experiment_class(n))}]
-                raise ConfigError(f"--{name.replace('_', '-')} exists for "
-                                  f"{', '.join(having) or 'no experiment'} only, not "
-                                  f"{args.paper}")
-            out[name] = value
+    out = {f.name: getattr(args, f.name) for f in cls.flagged_settings()
+           if getattr(args, f.name, None) is not None}
     for item in args.set or ():
         name, sep, text = item.partition("=")
         name = name.strip().replace("-", "_")
@@ -299,6 +295,7 @@ def _check_writable(path_text: str, option: str) -> None:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
+    import os
     from pathlib import Path
 
     from aligngym.scenarios.campaign import run_campaign
@@ -313,15 +310,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     cls = experiment_class(args.paper)
     settings = {} if args.scenario is None else {"scenario": args.scenario}
     settings.update(_settings_of(cls, args))
-    levels = [None]                  # one campaign; paper004 --swing all: one per level
-    if settings.get("swing") == "all":
-        from aligngym.scenarios.experiments.paper004 import SWING_LEVELS
-        levels = list(SWING_LEVELS)
+    sweep = next((f for f in cls.flagged_settings()
+                  if f.metadata["sweep"] and settings.get(f.name) == "all"), None)
+    levels = [None] if sweep is None else list(sweep.metadata["choices"])  # one campaign each
     episodes = args.episodes or cls.default_episodes
     summaries, elapsed = [], 0.0
     for level in levels:
         exp = experiment(args.paper, args.setup,
-                         **(settings if level is None else {**settings, "swing": level}))
+                         **(settings if level is None else {**settings, sweep.name: level}))
         filters = (list(exp.default_filters) if args.filters is None
                    else [f.strip() for f in args.filters.split(",") if f.strip()])
         if not filters:
@@ -338,12 +334,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                                   command=args.command_line):
             print(f"wrote {path}")
         summaries.append(result.summary())
-    if len(levels) > 1 and args.json:
-        from aligngym.scenarios.experiments.paper004 import merge_levels
-        Path(args.json).write_text(json.dumps(merge_levels(summaries), indent=2))
+    if sweep is not None and args.json:
+        path = Path(args.json)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(json.dumps(cls.merge_sweep(sweep.name, summaries), indent=2))
+        os.replace(tmp, path)       # atomic: the old file or the whole new one
         print(f"wrote {args.json}")
     print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s)"
-          + (f" x {len(levels)} swing levels" if len(levels) > 1 else "")
+          + (f" x {len(levels)} {sweep.name} values" if sweep is not None else "")
           + f" in {elapsed:.1f} s")
     return 0
 
@@ -444,10 +442,28 @@ def _cmd_regress(args: argparse.Namespace) -> int:
     return 0 if passed else 1
 
 
+def _bench_experiment(argv: list[str]) -> type | None:
+    """The Experiment class a bench command names (its first word that is an experiment
+    name), imported for its settings' options; None for other commands or none named."""
+    if not argv or argv[0] != "bench":
+        return None
+    names = set(experiment_names())
+    name = next((word for word in argv[1:] if word in names), None)
+    if name is None:
+        return None
+    from aligngym.scenarios.experiments import experiment_class
+    return experiment_class(name)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(bench_details="bench" in argv and ("-h" in argv or "--help" in argv))
-    args = parser.parse_args(argv)
+    parser = build_parser(bench_details="bench" in argv and ("-h" in argv or "--help" in argv),
+                          experiment=_bench_experiment(argv))
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        hint = (f" ('aligngym bench {args.paper} --help' lists its settings; any other is "
+                "--set NAME=VALUE)" if args.command == "bench" else "")
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}{hint}")
     args.command_line = ["aligngym", *argv]
     if args.command is None:      # a usage error: the usage, and status 2
         parser.print_help()

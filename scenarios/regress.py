@@ -118,17 +118,23 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
     """Run the regression campaigns; with update, store their metrics as the baselines.
     Returns (passed, report): the report has a line per paper and a table of the metrics
     that moved (beyond tolerance first)."""
-    known = campaigns()
+    from aligngym.scenarios.registry import experiment_names
+    names = experiment_names()          # checked before any experiment is imported
     if not papers:
-        raise ConfigError("--papers is empty; valid: " + ", ".join(known))
+        raise ConfigError("--papers is empty; valid: " + ", ".join(names))
+    unknown = [p for p in papers if p not in names]
+    if unknown:
+        raise ConfigError(f"--papers: {', '.join(unknown)} unknown; valid: "
+                          + ", ".join(names))
     if not Path(directory).is_dir() and not update:
         raise ConfigError(f"no baseline directory {directory} (the baselines ship "
                           "with the package in aligngym/scenarios/data/baselines); pass "
                           "--baselines DIR")
-    unknown = [p for p in papers if p not in known]
-    if unknown:
-        raise ConfigError(f"--papers: {', '.join(unknown)} unknown; valid: "
-                          + ", ".join(known))
+    known = campaigns()
+    without = [p for p in papers if p not in known]
+    if without:
+        raise ConfigError(f"--papers: {', '.join(without)} declares no regression "
+                          "campaign (Experiment.regress); with one: " + ", ".join(known))
     lines, passed = [], True
     for paper in papers:
         path = baseline_path(paper, directory)

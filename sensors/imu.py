@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cache
 
 import numpy as np
 
@@ -24,18 +25,19 @@ __all__ = ["TriadSpec", "ImuSpec", "TriadRealization", "ImuRealization", "ImuTun
            "ideal_increments", "apply_imu_errors", "IMU_PRESETS", "gauss_markov_sigma"]
 
 
-def _gm_adev_peak() -> float:
+@cache
+def gm_adev_peak() -> float:
     """Peak of the Allan deviation of a unit-variance first-order Gauss-Markov process.
 
     sigma_A^2(tau) = 2 sigma^2 / x [1 - (3 - 4 e^-x + e^-2x) / (2x)], x = tau / T_c;
-    the peak (~0.6175 at x ~ 1.89) does not depend on T_c.
+    the peak (~0.6175 at x ~ 1.89) does not depend on T_c. Computed on first use (a
+    200001-point grid: 8 ms that importing the sensors need not pay).
     """
     x = np.linspace(0.5, 6.0, 200001)
     adev2 = 2.0 / x * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
     return float(np.sqrt(adev2.max()))
 
 
-GM_ADEV_PEAK = _gm_adev_peak()
 FLICKER_FLOOR_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 """Allan-deviation floor of flicker bias noise per unit bias instability (0.664)."""
 
@@ -43,7 +45,7 @@ FLICKER_FLOOR_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 def gauss_markov_sigma(bias_instability: float) -> float:
     """Steady-state sigma of the Gauss-Markov process whose Allan-deviation peak equals the
     datasheet floor 0.664 x bias_instability (same units as the input)."""
-    return FLICKER_FLOOR_FACTOR * bias_instability / GM_ADEV_PEAK
+    return FLICKER_FLOOR_FACTOR * bias_instability / gm_adev_peak()
 
 
 @dataclass(frozen=True)

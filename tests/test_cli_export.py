@@ -135,6 +135,25 @@ def test_cli_module_loads_no_physics_or_estimators():
     assert out.strip() == "[]"
 
 
+def test_scenarios_and_experiments_load_no_physics():
+    """Reading every shipped scenario file and importing every experiment (what bench's
+    option checks need) loads no MuJoCo, SciPy or Numba: those load when a world is
+    built, a spline fitted or the strapdown run, so scenario and option errors answer at
+    once; ``import aligngym`` registers the gymnasium ids."""
+    heavy = ("mujoco", "scipy", "numba", "matplotlib")
+    code = ("import sys, gymnasium, aligngym; "
+            "from aligngym.scenarios.config import load_scenario; "
+            "from aligngym.scenarios.registry import experiment_names, scenario_names; "
+            "from aligngym.scenarios.experiments import experiment_class; "
+            "[load_scenario(n) for n in scenario_names()]; "
+            "[experiment_class(n) for n in experiment_names()]; "
+            "assert 'aligngym/Alignment-v0' in gymnasium.registry; "
+            f"print(sorted(m for m in {heavy!r} if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+
+
 def test_usage_version_and_bench_help(capsys):
     assert main([]) == 2
     assert "usage: aligngym" in capsys.readouterr().out

@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from aligngym import scenarios
-from aligngym.scenarios import ENV_IDS
+from aligngym.envs import ENV_IDS
 from aligngym.scenarios.experiments.paper003 import run_campaign
 
 SHORT = {"episode_length": 20.0}

@@ -94,7 +94,7 @@ def stopped(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(scenarios.simulate, "simulate", stop)
     monkeypatch.setattr(scenarios.fidelity, "fidelity_errors", stop)
-    monkeypatch.setattr(scenarios.campaign, "prepare_all", stop)
+    monkeypatch.setattr(scenarios.campaign.engine, "prepare_all", stop)
 
 
 @settings(max_examples=1000, deadline=None, derandomize=True,

@@ -1,6 +1,6 @@
 """A new experiment is one file: declared once (a frozen Experiment subclass with its
 settings, default episode count and regression campaign) and registered, it runs in
-``bench`` (its settings through --set), ``regress``, behind a scenario file's
+``bench`` (a declared setting as its own option, any other through --set), ``regress``, behind a scenario file's
 ``experiment`` key and the generic env id, with no edit anywhere else."""
 from dataclasses import dataclass
 
@@ -8,8 +8,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import aligngym.scenarios  # noqa: F401  (registers the env ids)
+import aligngym  # noqa: F401  (registers the env ids)
 from aligngym.scenarios import registry
+from aligngym.scenarios.campaign import setting
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.experiments import experiment, register_experiment
@@ -22,7 +23,8 @@ class QuickTableExperiment(Paper002Experiment):
     """Paper 002's static base from a 20 deg azimuth error, 60 s, the EKF alone."""
 
     fine_duration: float = 60.0
-    azimuth_error_deg: float = 20.0
+    azimuth_error_deg: float = setting(20.0, "the start's azimuth error", unit="deg",
+                                       minimum=0.0)
     default_filters: tuple[str, ...] = ("ekf",)
 
     default_episodes = 3
@@ -60,8 +62,8 @@ def registered(tmp_path, monkeypatch):
 
 def test_a_registered_experiment_runs_everywhere(registered, tmp_path, capsys):
     assert "quick-table" in registry.experiment_names()
-    assert main(["bench", "quick-table", "--scenario", registered, "--set",
-                 "azimuth_error_deg=10", "--json", "q.json", "--workers", "1"]) == 0
+    assert main(["bench", "quick-table", "--scenario", registered, "--azimuth-error-deg",
+                 "10", "--json", "q.json", "--workers", "1"]) == 0
     out = capsys.readouterr().out
     assert "3 runs" in out and "10 deg azimuth error" in out     # its default episodes
     assert campaigns()["quick-table"] == QuickTableExperiment.regress
@@ -83,8 +85,24 @@ def test_bad_settings_and_registrations_are_one_line_errors(registered, capsys):
     assert main(["bench", "quick-table", "--set", "no_such=1"]) == 2
     assert "--set 'no_such=1': need NAME=VALUE with NAME a setting of quick-table" in \
         capsys.readouterr().err
-    assert main(["bench", "quick-table", "--swing", "mild"]) == 2
-    assert "--swing exists for paper004 only, not quick-table" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:            # paper004's option, not this one's
+        main(["bench", "quick-table", "--swing", "mild"])
+    assert stop.value.code == 2
+    assert ("unrecognized arguments: --swing mild ('aligngym bench quick-table --help' lists "
+            "its settings" in capsys.readouterr().err)
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "quick-table", "--azimuth-error-deg", "-5"])
+    assert stop.value.code == 2
+    assert "--azimuth-error-deg must be >= 0, got -5" in capsys.readouterr().err
+
+
+def test_a_declared_setting_is_an_option_with_its_doc(registered, capsys):
+    with pytest.raises(SystemExit):
+        main(["bench", "quick-table", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "settings of QuickTableExperiment: --azimuth-error-deg DEG the start's azimuth " \
+        "error, deg; default: 20.0" in out
+    assert "fine_duration (60.0)" in out                # the others, for --set
     with pytest.raises(ConfigError, match="is not an Experiment subclass"):
         register_experiment("x", dict)
     with pytest.raises(ConfigError, match="'paper002' is taken"):

@@ -5,7 +5,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import aligngym.scenarios  # noqa: F401  (registers the env ids)
+import aligngym  # noqa: F401  (registers the env ids)
 from aligngym.scenarios import evaluate
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.config import ConfigError, load_scenario

@@ -36,8 +36,9 @@ def test_the_wheel_holds_aligngym_alone_with_its_data(installed):
     names = zipfile.ZipFile(wheel).namelist()
     assert {n.split("/")[0] for n in names} == {"aligngym", wheel.name.split("-py3")[0]
                                                 + ".dist-info"}
-    for sub in SUBPACKAGES:
-        assert f"aligngym/{sub}/__init__.py" in names
+    for sub in SUBPACKAGES:                 # every package of the source folders
+        for init in (ROOT / sub).rglob("__init__.py"):
+            assert f"aligngym/{init.relative_to(ROOT).as_posix()}" in names
     assert "aligngym/scenarios/data/static-large-azimuth.toml" in names
     assert "aligngym/scenarios/data/baselines/regress_paper002.json" in names
 
@@ -58,7 +59,7 @@ def test_a_users_own_packages_do_not_shadow_aligngym(installed, tmp_path):
     run = subprocess.run([str(python), "-c", code], cwd=tmp_path, capture_output=True,
                          text=True)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.strip() == "aligngym.scenarios.campaign"
+    assert run.stdout.strip() == "aligngym.scenarios.campaign.engine"
     cli = [str(python), "-m", "aligngym.scenarios.cli"]
     bench = subprocess.run(cli + ["bench", "paper002", "--episodes", "2", "--filters",
                                   "ekf", "--workers", "1", "--json", "s.json"],

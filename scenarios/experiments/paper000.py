@@ -28,7 +28,8 @@ from aligngym.estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
 from aligngym.models.attitude import dcm_to_quat, quat_to_dcm
 from aligngym.models.earth import TangentPlane
 from aligngym.models.units import arcmin, deg
-from aligngym.scenarios.campaign import CampaignResult, Experiment, PreparedEpisode, simulate_screened
+from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, setting,
+                                         simulate_screened)
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
 from aligngym.sensors.imu import ImuTuning
 
@@ -87,7 +88,8 @@ class Paper000Experiment(Experiment):
     mounting_sigma_deg: float | None = 1.0
     measurement_sigma: float = 0.02
     feedback_sigma_deg: float | None = 5.0
-    disturbance: str = "none"
+    disturbance: str = setting("none", "odometer slip bursts (slip), and a rough road as "
+                               "well (all)", choices=DISTURBANCES)
     reference_settle: float = 5.0
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 10.0

@@ -27,7 +27,8 @@ from aligngym.estimators.model import stack_episodes, wrap_angle
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.earth import C_n_e, geodetic_to_ecef
 from aligngym.models.units import arcmin, deg
-from aligngym.scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
+from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, setting,
+                                         simulate_screened)
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
 from aligngym.sensors.imu import ImuTuning
 
@@ -65,7 +66,9 @@ class Paper001Experiment(Experiment):
     """
 
     scenario: str = "figure8-gps"
-    coarse: str = "static"
+    coarse: str = setting("static", "the coarse alignment: static analytic in the first 60 "
+                          "s, or GPS-velocity-aided over the first 60 s of motion (the "
+                          "filter then starts in motion)", choices=("static", "moving"))
     coarse_start: float | None = None
     coarse_duration: float = 60.0
     fine_duration: float | None = None
@@ -74,10 +77,13 @@ class Paper001Experiment(Experiment):
     accel_noise_density: float = 1e-4
     heading_min_speed: float = 5.0
     motion_speed: float = 0.5
-    outage: float = 0.0
+    outage: float = setting(0.0, "a GPS outage of this length in the middle of the motion "
+                            "phase (0: none)", unit="s", minimum=0.0)
     outage_start: float | None = None
     turn_rate_deg_s: float = 3.0
-    heading_point: str = "antenna"
+    heading_point: str = setting("antenna", "the body point whose velocity gives the GPS "
+                                 "heading: the antenna (the paper) or the rear axle (no "
+                                 "kinematic sideslip)", choices=("antenna", "rear-axle"))
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 30.0
     default_filters: tuple[str, ...] = SCHEMES

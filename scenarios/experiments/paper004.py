@@ -39,7 +39,8 @@ from aligngym.estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsI
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.units import deg, deg_per_h, mg
 from aligngym.models.world import gimbal_C_s_b
-from aligngym.scenarios.campaign import CampaignResult, Experiment, GnssEpisode, simulate_screened
+from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, setting,
+                                         simulate_screened)
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
 from aligngym.sensors.imu import ImuTuning
 
@@ -95,10 +96,20 @@ class Paper004Experiment(Experiment):
     lever arm's share included)."""
 
     scenario: str = ""
-    motion: str = ""
-    swing: str = "moderate"
-    misalignment: str = "large"
-    case: str = "swing"
+    motion: str = setting("", "the boat's prescribed swing (usv-mems-swing) or the "
+                          "wave-driven boat in a random sea whose state the swing level "
+                          "sets (usv-mems-waves)",
+                          choices=tuple(MOTION_SCENARIOS))
+    swing: str = setting("moderate", "the boat's swing level (roll/pitch/heading 5/3/2, "
+                         "10/5/3, 22.5/10/5 deg, assumed)",
+                         choices=tuple(SWING_LEVELS), sweep=True)
+    misalignment: str = setting("large", "the fine stage's start: uniform within level "
+                                "+-10, heading +-60 deg (large), +-0.1/+-0.5 deg (small), "
+                                "or the GNSS-velocity-aided coarse alignment's result",
+                                choices=tuple(MISALIGNMENTS))
+    case: str = setting("swing", "the swing experiments, the consistency study (biases "
+                        "raised to 3.5-4.5 deg/h and 4.5-5.5 mg) or the static turntable "
+                        "(900 s)", choices=CASES)
     coarse_duration: float = 60.0
     fine_duration: float | None = None
     filter_step: float = 1.0
@@ -125,6 +136,11 @@ class Paper004Experiment(Experiment):
         if not self.scenario:
             object.__setattr__(self, "scenario",
                                MOTION_SCENARIOS[self.motion or "prescribed"])
+
+    @classmethod
+    def merge_sweep(cls, name: str, summaries: list[dict]) -> dict:
+        """--swing all: the levels' summaries nested per filter (``merge_levels``)."""
+        return merge_levels(summaries)
 
     @property
     def starts(self) -> tuple[str, ...]:

@@ -1,0 +1,31 @@
+"""The gymnasium ids, registered when ``aligngym`` is imported (gymnasium 1.x loads no
+plugin entry points; ``gym.register_envs(aligngym)`` or the ``"aligngym:<id>"`` form of
+``gym.make`` are the usual ways to make sure it is): ``aligngym/<Scenario>-v0`` for each
+shipped scenario that names an experiment (e.g. ``aligngym/ShipSwayRotary-v0``), and
+``aligngym/Alignment-v0`` for any scenario file that names one
+(``gym.make("aligngym/Alignment-v0", scenario="my.toml", ...)``). Registration imports
+gymnasium only; the env and its experiment load at ``gym.make``."""
+from __future__ import annotations
+
+import gymnasium
+
+from aligngym.scenarios.registry import GENERIC_ENV_ID, SCENARIO_PAPER, env_id
+
+ENTRY_POINT = "aligngym.scenarios.env:AlignmentEnv"
+
+ENV_SCENARIOS = sorted(SCENARIO_PAPER)
+"""Shipped scenarios with an env id (each names its experiment in its file)."""
+ENV_IDS = [env_id(name) for name in ENV_SCENARIOS]
+"""Their ids, in the order of ENV_SCENARIOS."""
+
+
+def register_envs() -> None:
+    """Register every id above once (a second call changes nothing). No
+    max_episode_steps: the length is an option (episode_length / epoch_length steps) and
+    the env reports it as truncated itself; a registered limit would cut longer episodes
+    short, before their metrics and video."""
+    for name, id_ in zip(ENV_SCENARIOS, ENV_IDS):
+        if id_ not in gymnasium.registry:
+            gymnasium.register(id=id_, entry_point=ENTRY_POINT, kwargs={"scenario": name})
+    if GENERIC_ENV_ID not in gymnasium.registry:
+        gymnasium.register(id=GENERIC_ENV_ID, entry_point=ENTRY_POINT)

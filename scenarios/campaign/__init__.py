@@ -1,0 +1,22 @@
+"""The Monte Carlo campaign, generic over experiments (SPEC 6).
+
+An ``Experiment`` (``experiment``) is run by ``run_campaign`` (``engine``): the output
+directory is claimed through its manifest (``manifest``), the episodes are prepared in
+parallel (``executors``: local processes or Ray) and written to disk one at a time,
+atomically (``episodes``), so an interrupted campaign keeps what finished and ``resume``
+continues it; the filters then run batched over all episodes (``runs``);
+``scenarios.report`` writes the tidy table, time series, plots and JSON.
+"""
+from aligngym.scenarios.campaign.engine import run_campaign
+from aligngym.scenarios.campaign.episodes import (GnssEpisode, PreparedEpisode, episode_seeds,
+                                                  simulate_screened)
+from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
+from aligngym.scenarios.campaign.experiment import (AXES, CampaignResult, Experiment, FilterRun,
+                                                    fine_summary, format_fine_table, setting)
+from aligngym.scenarios.campaign.runs import (analyse_run, concatenate_results, episode_metrics,
+                                              filter_threads, run_filter)
+
+__all__ = ["AXES", "EXECUTORS", "CampaignResult", "Experiment", "FilterRun", "GnssEpisode",
+           "PreparedEpisode", "analyse_run", "concatenate_results", "episode_metrics",
+           "episode_seeds", "filter_threads", "fine_summary", "format_fine_table",
+           "prepare_all", "run_campaign", "run_filter", "setting", "simulate_screened"]

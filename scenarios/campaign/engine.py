@@ -1,0 +1,49 @@
+"""The campaign engine: settings checked, the directory claimed (manifest), the episodes
+prepared (executors, stored as they finish), then every filter from every start run
+batched over all episodes."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from aligngym.scenarios.campaign.episodes import episode_seeds
+from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
+from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
+from aligngym.scenarios.campaign.manifest import check_manifest
+from aligngym.scenarios.campaign.runs import filter_threads, run_filter
+from aligngym.scenarios.config import ConfigError
+
+
+def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
+                 filters: list[str] | None = None, out_dir: str | Path | None = None,
+                 resume: bool = False, workers: int | None = None,
+                 progress: bool = True, executor: str = "local",
+                 address: str | None = None, force: bool = False) -> CampaignResult:
+    """Run an experiment's campaign; see the module docstring. executor: "local"
+    (processes) or "ray" (tasks on a local Ray instance, or the cluster at address)."""
+    filters = list(filters or experiment.default_filters)
+    experiment.check_filters(filters)
+    experiment.check(experiment.scenario_config())
+    if episodes < 1:
+        raise ConfigError(f"--episodes = {episodes} must be >= 1")
+    if executor not in EXECUTORS:
+        raise ConfigError(f"--executor {executor!r} is unknown; valid: " + ", ".join(EXECUTORS))
+    if address is not None and executor != "ray":
+        raise ConfigError("--address needs --executor ray")
+    workers = workers or os.cpu_count() or 1
+    out = Path(out_dir) if out_dir is not None else None
+    if out is not None:
+        check_manifest(out, experiment, seed, resume, force)
+    seeds = episode_seeds(seed, episodes)
+    prepared = prepare_all(experiment, seeds, out, resume, workers, progress, executor,
+                           address)
+    result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared),
+                            seed=seed)
+    from tqdm import tqdm          # after the checks: their errors answer at once
+    jobs = [(f, s) for f in filters for s in experiment.starts]
+    for name, start in tqdm(jobs, disable=not progress, desc="filters"):
+        result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
+                                      experiment, filter_threads(name, experiment, workers)))
+    return result
+
+

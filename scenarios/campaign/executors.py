@@ -1,0 +1,90 @@
+"""Where episodes are prepared: this process, local worker processes, or Ray tasks;
+each finished episode is saved at once, so an interrupted campaign keeps it."""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+from aligngym.scenarios.campaign.episodes import PreparedEpisode
+from aligngym.scenarios.campaign.experiment import Experiment
+from aligngym.scenarios.config import ConfigError
+
+
+EXECUTORS = ("local", "ray")
+
+
+def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
+                resume: bool, workers: int, progress: bool = True, executor: str = "local",
+                address: str | None = None) -> list[PreparedEpisode]:
+    """Prepare the episodes in parallel, in local processes or as Ray tasks
+    (``executor``; ``address``: a Ray cluster's, None starts a local instance with
+    ``workers`` CPUs); each episode is saved by this process as soon as it arrives, so
+    an interrupted campaign keeps its finished episodes whichever executor ran them.
+    With resume, episodes already on disk are loaded instead."""
+    from tqdm import tqdm
+
+    episode_dir = out_dir / "episodes" if out_dir is not None else None
+    if episode_dir is not None:
+        episode_dir.mkdir(parents=True, exist_ok=True)
+
+    def path(s: int) -> Path:
+        return episode_dir / f"seed_{s}.npz"
+
+    load = experiment.episode_class.load
+    done = {s: load(path(s)) for s in seeds
+            if resume and episode_dir is not None and path(s).is_file()}
+    todo = [s for s in seeds if s not in done]
+    bar = tqdm(total=len(seeds), initial=len(done), disable=not progress, desc="episodes")
+
+    def finish(s: int, episode: PreparedEpisode) -> None:
+        if episode_dir is not None:
+            episode.save(path(s))
+        done[s] = episode
+        bar.update()
+
+    if executor == "ray":
+        _prepare_on_ray(experiment, todo, finish, workers, address)
+    elif workers <= 1 or len(todo) <= 1:
+        for s in todo:
+            finish(s, experiment.prepare_episode(s))
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(experiment.prepare_episode, s): s for s in todo}
+            for fut in as_completed(futures):
+                finish(futures[fut], fut.result())
+    bar.close()
+    return [done[s] for s in seeds]
+
+
+def _prepare_task(experiment: Experiment, seed: int) -> PreparedEpisode:
+    return experiment.prepare_episode(seed)
+
+
+def _prepare_on_ray(experiment: Experiment, seeds: list[int], finish, workers: int,
+                    address: str | None) -> None:
+    """One Ray task per episode; results are handed to finish as they complete. A task
+    whose worker dies is retried by Ray (3 times); if it still fails the campaign stops
+    with Ray's error, the episodes already finished being on disk. An initialised Ray
+    (or RAY_ADDRESS) is used as it is: workers only size a local instance we start."""
+    if not seeds:                  # all resumed: nothing to run
+        return
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError("--executor ray needs Ray: pip install -e '.[ray]'") from None
+    address = address or os.environ.get("RAY_ADDRESS")
+    if not ray.is_initialized():
+        if address is None:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address, log_to_driver=False)
+    task = ray.remote(max_retries=3)(_prepare_task)
+    shared = ray.put(experiment)   # pickled once for all tasks
+    pending = {task.remote(shared, s): s for s in seeds}
+    while pending:
+        ready, _ = ray.wait(list(pending), num_returns=1)
+        for ref in ready:
+            finish(pending.pop(ref), ray.get(ref))
+
+

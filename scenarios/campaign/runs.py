@@ -1,0 +1,113 @@
+"""One filter over a batch of prepared episodes: the batched run (split over threads for
+the many-point rules), and its analysis (errors, NEES, divergence, convergence time,
+one tidy row per episode)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from aligngym.estimators.alignment import FineResult, run_alignment
+from aligngym.estimators.filters import filter_entry, make_filter
+from aligngym.estimators.metrics import DivergenceRule, convergence_time, euler_error, misalignment
+from aligngym.models.units import arcmin
+from aligngym.scenarios.campaign.episodes import PreparedEpisode
+from aligngym.scenarios.campaign.experiment import AXES, Experiment, FilterRun
+
+
+def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],
+                experiment: Experiment, divergence: DivergenceRule = DivergenceRule()
+                ) -> FilterRun:
+    """Errors, body Euler errors, NEES, divergence and convergence time of a run."""
+    K = result.t.size
+    C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
+    error_n = misalignment(C_true, result.C_s_n)
+    C_b_n_est = result.C_s_n @ np.swapaxes(np.stack([e.C_s_b[:K] for e in episodes]), -1, -2)
+    eul = euler_error(np.stack([e.C_b_n_true[:K] for e in episodes]), C_b_n_est)
+    diverged, reason = divergence.apply(error_n[:, -1], result.sigma_n[:, -1],
+                                        result.diverged, result.diverged_reason)
+    heading = convergence_time(result.t - result.t[0], error_n[:, :, 2],
+                               experiment.heading_threshold_arcmin * arcmin)
+    return FilterRun(filter=name, start=start, result=result, error_n=error_n,
+                     euler_error=eul, nees=experiment.nees(result, episodes, error_n),
+                     diverged=diverged, reason=reason, heading_convergence=heading)
+
+
+def run_filter(name: str, start: str, start_error: np.ndarray,
+               episodes: list[PreparedEpisode], experiment: Experiment,
+               threads: int = 1, **model_options: Any) -> FilterRun:
+    """One filter on all episodes from a starting error (rad; common (3,) or per episode
+    (B, 3)); model_options go to ``experiment.model`` (e.g. paper 003's tuning). With
+    threads > 1 the batch is split into that many chunks run in threads (NumPy releases
+    the GIL in its array loops; the episodes are independent, so the result is the same
+    as one batch)."""
+    start_error = np.asarray(start_error, dtype=float)
+    per_episode = np.broadcast_to(start_error, (len(episodes), 3))
+    chunks = [c for c in np.array_split(np.arange(len(episodes)), max(1, threads)) if c.size]
+
+    variant = filter_entry(name).model
+
+    def run_chunk(idx: np.ndarray) -> FineResult:
+        filt = make_filter(name, **experiment.filter_options())
+        return run_alignment(filt, experiment.model([episodes[i] for i in idx],
+                                                    per_episode[idx], variant,
+                                                    **model_options))
+
+    if len(chunks) == 1:
+        result = run_chunk(chunks[0])
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(len(chunks)) as pool:
+            result = concatenate_results(list(pool.map(run_chunk, chunks)))
+    return analyse_run(name, start, result, episodes, experiment)
+
+
+def filter_threads(name: str, experiment: Experiment, workers: int) -> int:
+    """Threads worth giving a filter: all workers for rules with >= 100 points per
+    episode (their array work dominates), one otherwise (thread overhead would)."""
+    points = filter_entry(name).rule().point_count(experiment.state_count)
+    return workers if points >= 100 else 1
+
+
+def concatenate_results(parts: list[FineResult]) -> FineResult:
+    """One result from batch chunks (same epochs); seconds_per_epoch is the chunks'
+    summed compute time per epoch."""
+    width = max(p.factors.shape[-1] for p in parts)
+    factors = [np.pad(p.factors, ((0, 0), (0, 0), (0, width - p.factors.shape[-1])),
+                      constant_values=np.nan) for p in parts]
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    return FineResult(t=parts[0].t, C_s_n=cat("C_s_n"), P=cat("P"), sigma_n=cat("sigma_n"),
+                      x=cat("x"), factors=np.concatenate(factors), diverged=cat("diverged"),
+                      diverged_time=cat("diverged_time"),
+                      diverged_reason=sum((p.diverged_reason for p in parts), []),
+                      repairs=cat("repairs"),
+                      seconds_per_epoch=sum(p.seconds_per_epoch for p in parts),
+                      series={name: np.concatenate([p.series[name] for p in parts])
+                              for name in parts[0].series},
+                      nis=cat("nis"), nis_dof=cat("nis_dof"))
+
+
+def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:
+    """The per-episode metrics of episode b of a run (one row of the tidy table)."""
+    r = run.result
+    t = r.t
+    in_window = t >= t[-1] - rms_window - 1e-9
+    rms = np.sqrt(np.mean(run.error_n[b, in_window] ** 2, axis=0)) / arcmin
+    row = {}
+    for prefix, values in (("final", run.error_n[b, -1] / arcmin), ("rms", rms),
+                           ("final_sigma", r.sigma_n[b, -1] / arcmin)):
+        row.update({f"{prefix}_{a}_arcmin": float(v) for a, v in zip(AXES, values)})
+    row.update({f"final_{a}_arcmin": float(v) for a, v in
+                zip(("pitch", "roll", "heading"), run.euler_error[b, -1] / arcmin)})
+    nees = run.nees[b, 1:]
+    row.update({
+        "heading_convergence_s": float(run.heading_convergence[b]),
+        "nees_mean": float(np.mean(nees)) if np.isfinite(nees).any() else None,
+        "nees_final": float(run.nees[b, -1]) if np.isfinite(run.nees[b, -1]) else None,
+        "diverged": bool(run.diverged[b]), "diverged_reason": run.reason[b],
+        "diverged_time_s": float(r.diverged_time[b] - t[0]) if r.diverged[b] else None,
+        "covariance_repairs": int(r.repairs[b]),
+        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0]})
+    return row
+
+
