@@ -22,8 +22,8 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     """Run an experiment's campaign; see the module docstring. executor: "local"
     (processes) or "ray" (tasks on a local Ray instance, or the cluster at address)."""
     filters = list(filters or experiment.default_filters)
-    experiment.check_filters(filters)
-    experiment.check(experiment.scenario_config())
+    experiment.check(experiment.scenario_config())   # the file first: it is the cheaper
+    experiment.check_filters(filters)                # (a sparse grid counts its points)
     if episodes < 1:
         raise ConfigError(f"--episodes = {episodes} must be >= 1")
     if executor not in EXECUTORS:
