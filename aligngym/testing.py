@@ -23,6 +23,7 @@ def assert_alignment(filter: str, scenario: str, episodes: int = 5, seed: int = 
     from aligngym.scenarios.campaign import run_campaign
     from aligngym.scenarios.experiments import experiment_for
 
+    _check_arguments(filter, scenario, episodes, seed, heading_rms_arcmin, level_rms_arcmin)
     exp = experiment_for(scenario, **settings)
     result = run_campaign(exp, episodes=episodes, seed=seed, filters=[filter],
                           workers=1, progress=False)
@@ -49,3 +50,29 @@ def assert_alignment(filter: str, scenario: str, episodes: int = 5, seed: int = 
         lines.append(f"{'RMS':>14s}{rms[0]:10.3f}{rms[1]:10.3f}{rms[2]:12.3f}")
         raise AlignmentBoundExceeded("\n".join(lines))
     return measured
+
+
+def _check_arguments(filter, scenario, episodes, seed, heading, level) -> None:
+    """One-line TypeError/ValueError naming the argument, before any work."""
+    import math
+    import os
+    for name, value in (("filter", filter), ("scenario", scenario)):
+        if not isinstance(value, (str, os.PathLike)) or not str(value):
+            raise TypeError(f"assert_alignment: {name} must be a non-empty name or path, "
+                            f"got {value!r}")
+    for name, value, low in (("episodes", episodes, 1), ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise TypeError(f"assert_alignment: {name} must be an integer >= {low}, "
+                            f"got {value!r}")
+        if value < low:
+            raise ValueError(f"assert_alignment: {name} = {value} must be >= {low}")
+    for name, value in (("heading_rms_arcmin", heading), ("level_rms_arcmin", level)):
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating,
+                                                             np.integer)):
+            raise TypeError(f"assert_alignment: {name} must be a number > 0 (arcmin), "
+                            f"got {value!r}")
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"assert_alignment: {name} = {value} must be finite and > 0 "
+                             "(arcmin)")

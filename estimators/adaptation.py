@@ -83,11 +83,32 @@ def _diagonal_selection(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return H[..., np.arange(m), cols], cols
 
 
+OBSERVATION_FEATURES = {
+    "selection-H": "H = [diag(s) 0] up to a selection of the states (each measurement "
+                   "one state)",
+    "unit-selection-H": "H = [I 0] (each measurement one state, unscaled)",
+    "axes": "the measurement's local-level axes (Observation.axes)",
+    "directions": "the directly measured state directions (Observation.directions)",
+    "conditionally-linear": "maps conditionally linear in a few nonlinear states "
+                            "(GaussianMap.conditional)",
+}
+"""What a policy (``AdaptationPolicy.needs``) or an integration rule
+(``IntegrationRule.needs``) may need of a model, and an experiment's model declares it
+gives (``Experiment.observation_features``)."""
+
+
 class AdaptationPolicy(ABC):
     """Decides P_pred and R from the update's context; reports its factors (B, k)."""
 
     n_factors: int = 0
     name: str = "none"
+
+    @property
+    def needs(self) -> frozenset[str]:
+        """What the policy needs of the model's observation (keys of
+        ``OBSERVATION_FEATURES``); checked against an experiment before any episode is
+        simulated (``Experiment.check_filters``)."""
+        return frozenset()
 
     def reset(self, batch: int) -> None:
         """Start a new batch of episodes."""
@@ -195,6 +216,11 @@ class _PerAxisFading(InnovationFading):
             raise ValueError(f"axes = {axes!r}; valid: " + ", ".join(FACTOR_AXES))
         self.axes = axes
 
+    @property
+    def needs(self) -> frozenset[str]:
+        return frozenset({"selection-H"} | ({"unit-selection-H", "axes"}
+                                            if self.axes == "local-level" else set()))
+
     def _factors(self, N: np.ndarray, J: np.ndarray, ctx: AdaptationContext
                  ) -> tuple[np.ndarray, np.ndarray]:
         """Factors (B, m) and the full congruence matrix L (B, n, n)."""
@@ -275,6 +301,7 @@ class MeasurementAxisFading(InnovationFading):
 
     n_factors = 3
     name = "measurement-axis-fading"
+    needs = frozenset({"axes"})
 
     def adapt(self, ctx):
         if ctx.axes is None:
@@ -414,6 +441,7 @@ class SelectiveWeights(_RobustObservations):
 
     name = "selective-weights"
     n_factors = 1
+    needs = frozenset({"directions"})
 
     def __init__(self, m: float = 2.5, robust: bool = True, k0: float = 2.0,
                  k1: float = 6.0, max_rejections: int = 3) -> None:

@@ -365,6 +365,17 @@ def register_filter(name: str, rule: Callable[[], IntegrationRule],
     if not callable(rule) or not callable(adaptation):
         raise TypeError(f"filter {name!r}: rule and adaptation must be factories "
                         "(callables returning an IntegrationRule / AdaptationPolicy)")
+    for factory, kind, options in ((rule, IntegrationRule, {}),
+                                   (adaptation, AdaptationPolicy,
+                                    {"rho": 0.95} if fading else {})):
+        try:                       # built once here: a wrong factory fails now, named
+            made = factory(**options)
+        except Exception as exc:
+            raise TypeError(f"filter {name!r}: {getattr(factory, '__name__', factory)!s}() "
+                            f"raised {type(exc).__name__}: {exc}") from None
+        if not isinstance(made, kind):
+            raise TypeError(f"filter {name!r}: {getattr(factory, '__name__', factory)!s}() "
+                            f"returned {type(made).__name__}, not an {kind.__name__}")
     entry = FilterEntry(rule, adaptation, description or f"user filter {name}", fading, model)
     FILTERS[name] = entry
     return entry
@@ -420,6 +431,14 @@ def filter_entry(name: str) -> FilterEntry:
         return FilterEntry(lambda: rule(value), NoAdaptation,
                            description.replace(" L ", f" {value} ").replace(" m", f" {value}"))
     raise UnknownFilter(f"unknown filter {name!r}; known filters: " + ", ".join(filter_names()))
+
+
+def filter_needs(name: str, **adaptation_options) -> frozenset[str]:
+    """What the named filter's rule and adaptation need of a model
+    (``adaptation.OBSERVATION_FEATURES``)."""
+    entry = filter_entry(name)
+    policy = entry.adaptation(**(adaptation_options if entry.fading else {}))
+    return frozenset(entry.rule().needs) | frozenset(policy.needs)
 
 
 def make_filter(name: str, **adaptation_options) -> GaussianFilter:

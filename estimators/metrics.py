@@ -39,20 +39,26 @@ def nees(error: np.ndarray, P: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class DivergenceRule:
-    """An episode is diverged if the filter flagged numerical trouble, or its final
+    """An episode is diverged if the filter flagged numerical trouble; or its final
     attitude error exceeds ``ratio`` times its own 3-sigma bound on an axis and also
-    ``floor`` rad (a filter lost while confident)."""
+    ``floor`` rad (a filter lost while confident); or its final attitude sigma exceeds
+    ``sigma_bound`` rad on an axis (a filter lost and knowing it: past pi its Gaussian
+    belief says nothing about an angle, and the first test can no longer fire)."""
 
     ratio: float = 5.0
     floor: float = 2.9088820866572157e-4  # 1 arcmin
+    sigma_bound: float = np.pi
 
     def apply(self, final_error: np.ndarray, final_sigma: np.ndarray,
               flagged: np.ndarray, reasons: list[str]) -> tuple[np.ndarray, list[str]]:
         lost = np.any((np.abs(final_error) > self.ratio * 3.0 * final_sigma)
                       & (np.abs(final_error) > self.floor), axis=-1)
-        out = [r if f else (f"final error > {self.ratio:g} x 3 sigma" if l else "")
-               for f, l, r in zip(flagged, lost, reasons)]
-        return flagged | lost, out
+        blown = np.any(~(final_sigma <= self.sigma_bound), axis=-1)   # NaN counts
+        out = [r if f else (f"final error > {self.ratio:g} x 3 sigma" if l else
+                            f"attitude sigma > {np.degrees(self.sigma_bound):g} deg"
+                            if b else "")
+               for f, l, b, r in zip(flagged, lost, blown, reasons)]
+        return flagged | lost | blown, out
 
 
 def static_alignment_floor(C_to_n: np.ndarray, gyro_bias: np.ndarray,

@@ -49,6 +49,9 @@ class IntegrationRule(ABC):
 
     name: str
     has_negative_weights: bool = False
+    needs: frozenset[str] = frozenset()
+    """What the rule needs of the model's maps (keys of
+    ``adaptation.OBSERVATION_FEATURES``)."""
 
     def moments(self, fmap: GaussianMap, mean: np.ndarray, cov: np.ndarray) -> Moments:
         """E[y] (B, d), Cov[y] (B, d, d) without the map's noise, Cov[x, y] (B, n, d) for
@@ -282,6 +285,8 @@ class ReducedGaussHermiteRule(IntegrationRule):
     zeta ordered first): Theta_i = mean + S[:, :l] xi_i, Sigma_c = S[:, l:] S[:, l:]^T,
     y_i = F_i Theta_i + g_i, Cov[y] = sum W_i [(y_i - y)(.)^T + F_i Sigma_c F_i^T],
     Cov[x, y] = sum W_i [(Theta_i - mean)(y_i - y)^T + Sigma_c F_i^T]."""
+
+    needs = frozenset({"conditionally-linear"})
 
     def __init__(self, order: int = 7) -> None:
         if order < 1:

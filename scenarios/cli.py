@@ -294,8 +294,6 @@ def _check_writable(path_text: str, option: str) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    import json
-    import os
     from pathlib import Path
 
     from aligngym.scenarios.campaign import run_campaign
@@ -324,26 +322,54 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             raise ConfigError("--filters is empty; give at least one filter name")
         out = args.out if level is None or args.out is None else str(Path(args.out) / level)
         start = time.perf_counter()
-        result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
-                              out_dir=out, resume=args.resume, workers=args.workers,
-                              executor=args.executor, address=args.address,
-                              force=args.force)
-        elapsed += time.perf_counter() - start
-        print(format_tables(result))
-        for path in write_outputs(result, out, args.json if level is None else None,
-                                  command=args.command_line):
+        with _holding(out):            # the campaign and its outputs: one writer
+            result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
+                                  out_dir=out, resume=args.resume, workers=args.workers,
+                                  executor=args.executor, address=args.address,
+                                  force=args.force)
+            elapsed += time.perf_counter() - start
+            print(format_tables(result))
+            written = write_outputs(result, out, args.json if level is None else None,
+                                    command=args.command_line)
+        for path in written:
             print(f"wrote {path}")
         summaries.append(result.summary())
     if sweep is not None and args.json:
-        path = Path(args.json)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(cls.merge_sweep(sweep.name, summaries), indent=2))
-        os.replace(tmp, path)       # atomic: the old file or the whole new one
+        from aligngym.scenarios.atomic import write_json
+        write_json(args.json, cls.merge_sweep(sweep.name, summaries))
         print(f"wrote {args.json}")
     print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s)"
           + (f" x {len(levels)} {sweep.name} values" if sweep is not None else "")
           + f" in {elapsed:.1f} s")
     return 0
+
+
+def _holding(out: str | None):
+    """The campaign directory's lock (``campaign.manifest.campaign_lock``), or nothing
+    without --out."""
+    import contextlib
+    from pathlib import Path
+
+    if out is None:
+        return contextlib.nullcontext()
+    from aligngym.scenarios.campaign.engine import claim_directory
+    from aligngym.scenarios.campaign.manifest import campaign_lock
+    claim_directory(Path(out))
+    return campaign_lock(Path(out))
+
+
+def _interrupted(args: argparse.Namespace) -> str:
+    """The one line for Ctrl-C: what was kept and how to continue."""
+    from pathlib import Path
+
+    if args.command != "bench":
+        return "aligngym: interrupted; no output was written (an existing one is unchanged)"
+    if not args.out:
+        return "aligngym: interrupted; nothing was kept (bench without --out keeps no episodes)"
+    kept = len(list(Path(args.out).glob("**/episodes/seed_*.npz")))
+    again = [w for w in args.command_line if w not in ("--resume", "--force")] + ["--resume"]
+    return (f"aligngym: interrupted; {kept} finished episode(s) kept in {args.out}; "
+            f"continue with: {' '.join(again)}")
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -484,6 +510,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _cmd_fidelity(args)
     except ConfigError as exc:
         print(f"aligngym: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(_interrupted(args), file=sys.stderr)
+        return 130
+    except OSError as exc:         # a full disk, a file removed under us: path and cause
+        where = exc.filename or "an output"
+        print(f"aligngym: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

@@ -43,6 +43,18 @@ SHARED_EPISODES = 16
 makes of one scenario simulate each (experiment, seed) once); read-only."""
 _SHARED: OrderedDict = OrderedDict()
 
+RESET_OPTIONS = ("episode_seed", "start_error")
+"""The keys ``reset(options=...)`` takes."""
+
+
+def _real_array(value, name: str, expected: str, error: type = ConfigError) -> np.ndarray:
+    """value as a float array; complex, boolean, string or object values are refused (a
+    complex number's imaginary part is not dropped) with one line naming ``name``."""
+    array = np.asarray(value)
+    if array.dtype.kind not in "iuf":
+        raise error(f"{name} must be {expected}, got {array.dtype} values")
+    return array.astype(float)
+
 OBS_SIZE = 16
 REWARD_SCALE = np.array([1.0, 1.0, 10.0]) * arcmin
 REWARD_CAP = 100.0
@@ -133,10 +145,20 @@ class AlignmentEnv(gym.Env):
         "default" (the experiment's: the episode's own coarse alignment for 003, the
         large azimuth error for 002; "coarse" is the same), "random" (drawn from the
         filter's initial attitude sigma) or phi E, N, U in rad (3,)."""
+        options = {} if options is None else options
+        if not isinstance(options, dict):
+            raise ConfigError(f"reset options must be a dict, got {type(options).__name__}")
+        unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+        if unknown:
+            raise ConfigError(f"reset option {unknown[0]!r} is unknown; valid: "
+                              + ", ".join(RESET_OPTIONS))
+        chosen = options.get("episode_seed")
+        if chosen is not None and (isinstance(chosen, bool) or not isinstance(
+                chosen, (int, np.integer)) or chosen < 0):
+            raise ConfigError(f"episode_seed must be an integer >= 0, got {chosen!r}")
         super().reset(seed=seed)
-        options = options or {}
-        episode_seed = int(options.get("episode_seed",
-                                       self.np_random.integers(0, 2 ** 31 - 1)))
+        episode_seed = int(chosen if chosen is not None
+                           else self.np_random.integers(0, 2 ** 31 - 1))
         self._episode = self._prepare(episode_seed)
         start = options.get("start_error", "default")
         if isinstance(start, str):
@@ -147,7 +169,7 @@ class AlignmentEnv(gym.Env):
             else:
                 raise ConfigError(f"start_error = {start!r}; valid: 'default', 'random' or "
                                   "3 angles in rad")
-        self._start_error = np.asarray(start, dtype=float)
+        self._start_error = _real_array(start, "start_error", "3 finite angles in rad (E, N, U)")
         if self._start_error.shape != (3,) or not np.all(np.isfinite(self._start_error)):
             raise ConfigError("start_error must be 3 finite angles in rad (E, N, U)")
         filt = make_filter(self.estimator, **self.experiment.filter_options())
@@ -178,7 +200,8 @@ class AlignmentEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._over:
             raise RuntimeError("the episode is over; call reset() before step()")
-        a = np.asarray(action, dtype=float)
+        a = _real_array(action, "action", f"{self.action_space.shape[0]} real numbers in [-1, 1]",
+                        ValueError)
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape} "
                              f"(log10 scales of Q_gyro, Q_accel, R{', floor' if self._fading else ''}"
@@ -276,7 +299,10 @@ class AlignmentEnv(gym.Env):
 
         path = Path(self.video_path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        imageio.mimwrite(path, self._frames, fps=self.metadata["render_fps"], macro_block_size=8)
+        from aligngym.scenarios.atomic import atomic_path
+        with atomic_path(path) as tmp:
+            imageio.mimwrite(tmp, self._frames, fps=self.metadata["render_fps"],
+                             macro_block_size=8)
         self._frames = []
 
     def close(self) -> None:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from aligngym.models.units import arcmin
+from aligngym.scenarios.atomic import save_figure
 
 AXIS_NAMES = ("East", "North", "Up")
 
@@ -307,7 +308,7 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
     fig.suptitle(title + " (line: median)")
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.06, top=0.87, hspace=0.1,
                         wspace=0.13)   # fixed: tight_layout would double the cost
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path
 
@@ -354,7 +355,7 @@ def plot_final_errors(result, start: str, path: Path) -> Path:
     fig.suptitle(f"Final attitude error from the {start} start, {len(result.seeds)} episodes "
                  "(box: quartiles; whiskers: 5-95 %; x: diverged episode)")
     fig.subplots_adjust(left=0.06, right=0.99, bottom=0.14, top=0.86, wspace=0.2)
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path
 
@@ -384,7 +385,7 @@ def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float
     ax.set_title(f"Heading convergence from the {start} start: |heading error| <= "
                  f"{threshold_arcmin:g}' from then to the end")
     fig.subplots_adjust(left=0.07, right=0.7, bottom=0.11, top=0.92)
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path
 
@@ -435,7 +436,7 @@ def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
     axes[0].set_title(f"NEES of the {dof} states the truth knows, {start} start "
                       "(episodes not diverged)")
     fig.subplots_adjust(left=0.07, right=0.7, bottom=0.07, top=0.95, hspace=0.08)
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.figures import FIGURE_CAPTIONS, figure_caption
 
@@ -70,7 +71,7 @@ def write_report(directory: str | Path) -> Path:
     text = render_report(root)
     path = root / "report.html"
     try:
-        path.write_text(text, encoding="utf-8")
+        write_text(path, text)
     except OSError as exc:
         raise ConfigError(f"report DIR {root}: cannot write report.html "
                           f"({exc.strerror})") from None

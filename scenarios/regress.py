@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.config import ConfigError
 
 BASELINE_DIR = Path(__file__).resolve().parent / "data" / "baselines"
@@ -141,18 +141,21 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
         if update:
             now = campaign_metrics(paper, workers)
             path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"settings": known[paper], "metrics": now},
-                                      indent=1, sort_keys=True))
-            os.replace(tmp, path)             # atomic: never a truncated baseline
+            write_text(path, json.dumps({"settings": known[paper], "metrics": now},
+                                        indent=1, sort_keys=True))   # never a truncated one
             lines.append(f"{paper}: baseline written ({len(now)} metrics) to {path}")
             continue
         if not path.is_file():
             raise ConfigError(f"no baseline for {paper} at {path}; run with --update")
         try:
             stored = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{path} is not valid JSON ({exc}); run with --update") from None
+        if not (isinstance(stored, dict) and isinstance(stored.get("metrics"), dict)
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                        for v in stored["metrics"].values())):
+            raise ConfigError(f"{path} is not a baseline (an object with 'settings' and "
+                              "numeric 'metrics'); run with --update")
         if stored.get("settings") != known[paper]:
             raise ConfigError(f"{path} was made with other settings "
                               f"({stored.get('settings')}); run with --update")

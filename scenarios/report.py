@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from aligngym.models.units import arcmin
+from aligngym.scenarios.atomic import atomic_path, write_json, write_text
 from aligngym.scenarios.campaign import AXES, CampaignResult, episode_metrics
 from aligngym.scenarios.figures import write_figures
 
@@ -88,19 +89,18 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     if json_path is not None:
         path = Path(json_path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(result.summary(), indent=2))
-        written.append(path)
+        written.append(write_json(path, result.summary()))
     if out_dir is None:
         return written
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / "results.csv", "w", newline="") as f:
+    with atomic_path(out / "results.csv") as tmp, open(tmp, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=TIDY_COLUMNS)
         writer.writeheader()
         writer.writerows(tidy_rows(result))
     written += [out / "results.csv"]
     if all(hasattr(e, "coarse_error") for e in result.episodes):
-        with open(out / "coarse.csv", "w", newline="") as f:
+        with atomic_path(out / "coarse.csv") as tmp, open(tmp, "w", newline="") as f:
             writer = csv.writer(f)
             writer.writerow(["seed"] + [f"{a}_deg" for a in AXES])
             for seed, e in zip(result.seeds, result.episodes):
@@ -115,13 +115,12 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
         series[f"{key}__factors"] = run.result.factors.astype(np.float32)
         series[f"{key}__nees"] = run.nees.astype(np.float32)
         series[f"{key}__diverged"] = np.asarray(run.diverged, bool)
-    np.savez_compressed(out / "timeseries.npz", **series)
+    with atomic_path(out / "timeseries.npz") as tmp:
+        np.savez_compressed(tmp, **series)
     written.append(out / "timeseries.npz")
-    (out / "tables.txt").write_text(format_tables(result) + "\n")
-    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2))
-    (out / "settings.json").write_text(json.dumps(campaign_settings(result, command),
-                                                  indent=2))
-    written += [out / "tables.txt", out / "summary.json", out / "settings.json"]
+    written += [write_text(out / "tables.txt", format_tables(result) + "\n"),
+                write_json(out / "summary.json", result.summary()),
+                write_json(out / "settings.json", campaign_settings(result, command))]
     written += write_figures(result, out)
     written += result.experiment.plots(result, out)
     return written

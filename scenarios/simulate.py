@@ -1,6 +1,7 @@
 """One episode of a scenario: MuJoCo truth, ideal or erroneous IMU increments, encoders."""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -12,7 +13,7 @@ from aligngym.models.platform import StaticPlatformWorld
 from aligngym.models.ship import ShipWorld
 from aligngym.models.truth import NavigationTruth, imu_truth
 from aligngym.models.world import PrescribedWorld
-from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.scenarios.config import PHYSICS_RATE, ConfigError, ScenarioConfig
 from aligngym.sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
 
 # Truth is sampled at twice the IMU rate so that Simpson's rule integrates the increments.
@@ -53,12 +54,14 @@ class Episode:
         return out
 
     def save(self, path: str | Path) -> Path:
-        """Write the arrays to an .npz file (no pickled objects)."""
+        """Write the arrays to an .npz file (no pickled objects), atomically."""
         path = Path(path)
         if path.suffix != ".npz":
             raise ConfigError(f"--out must name a .npz file, got {str(path)!r}")
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path, **self.arrays())
+        from aligngym.scenarios.atomic import atomic_path
+        with atomic_path(path) as tmp:        # a killed run leaves no partial file
+            np.savez(tmp, **self.arrays())
         return path
 
 
@@ -116,10 +119,53 @@ def episode_motion(config: ScenarioConfig, rng: np.random.Generator):
     return motion
 
 
+BYTES_PER_IMU_SAMPLE = 2200
+"""Peak memory of a simulation per IMU sample (truth, increments, sensor errors;
+measured: 2.2 kB on the prescribed ship at 100 Hz)."""
+BYTES_PER_PHYSICS_STEP = 500
+"""And per MuJoCo step of the dynamic worlds (the recorded states; measured 0.2-0.5 kB)."""
+MEMORY_SHARE = 0.5
+"""A simulation may use at most this share of the memory available when it starts."""
+
+
+def memory_estimate(config: ScenarioConfig) -> float:
+    """Bytes a simulation of config needs at its peak (an upper estimate)."""
+    steps = config.duration * PHYSICS_RATE.get(config.world, 0.0)
+    return config.imu_samples * BYTES_PER_IMU_SAMPLE + steps * BYTES_PER_PHYSICS_STEP
+
+
+def available_memory() -> float | None:
+    """Bytes of memory available now (Linux: MemAvailable), None if unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(config: ScenarioConfig) -> None:
+    """One-line ConfigError, before any work, for a run that would need more than
+    MEMORY_SHARE of the available memory (naming the fields that set its size)."""
+    need, have = memory_estimate(config), available_memory()
+    if have is not None and need > MEMORY_SHARE * have:
+        raise ConfigError(f"run.duration_s = {config.duration:g} s at run.imu_rate_hz = "
+                          f"{config.imu_rate:g} needs about {need / 1e9:.1f} GB to simulate, "
+                          f"more than {MEMORY_SHARE:.0%} of the {have / 1e9:.1f} GB available; "
+                          "shorten the run or lower the IMU rate")
+
+
 def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Episode:
-    """Simulate one episode of the scenario."""
+    """Simulate one episode of the scenario (refused first if it would not fit in
+    memory: ``check_memory``)."""
     if seed < 0:
         raise ConfigError(f"seed = {seed} must be >= 0")
+    check_memory(config)
     if config.world in ("car", "ship-waves"):
         return _simulate_dynamic(config, seed, ideal)
     rngs = episode_rngs(seed)

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aligngym.scenarios.atomic import atomic_path
 from aligngym.scenarios.config import ConfigError, ScenarioConfig, load_scenario
 from aligngym.scenarios.render import SceneRenderer, error_line
 
@@ -100,15 +101,18 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
     renderer = SceneRenderer(config, seed=seed, size=size)
     if path.suffix.lower() == ".png":
         try:
-            imageio.imwrite(path, renderer.frame(start, track.lines(start) if track else None))
+            with atomic_path(path) as tmp:
+                imageio.imwrite(tmp, renderer.frame(start, track.lines(start) if track
+                                                    else None))
         finally:
             renderer.close()
         seconds = time.perf_counter() - started
         return {"path": path, "frames": 1, "seconds": seconds, "seconds_per_frame": seconds}
     times = start + np.arange(int(math.floor((config.duration - start) * fps + 1e-9)) + 1) / fps
-    try:
-        with imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=8,
-                                ffmpeg_log_level="error") as writer:
+    try:                # a killed or interrupted render leaves the old video, not a short one
+        with atomic_path(path) as tmp, imageio.get_writer(
+                tmp, fps=fps, codec="libx264", macro_block_size=8,
+                ffmpeg_log_level="error") as writer:
             for t in times:
                 writer.append_data(renderer.frame(float(t), track.lines(t) if track else None))
     finally:

@@ -16,7 +16,7 @@ ARGS = ["bench", "paper002", "--episodes", "8", "--filters", "ekf", "--workers",
 
 
 def aligngym(*args: str) -> list[str]:
-    return [sys.executable, "-c", "import sys; from scenarios.cli import main; "
+    return [sys.executable, "-c", "import sys; from aligngym.scenarios.cli import main; "
             "sys.exit(main(sys.argv[1:]))", *args]
 
 

@@ -1,6 +1,6 @@
-"""The campaign engine: settings checked, the directory claimed (manifest), the episodes
-prepared (executors, stored as they finish), then every filter from every start run
-batched over all episodes."""
+"""The campaign engine: settings checked, the directory claimed (created, locked, its
+manifest checked), the episodes prepared (executors, stored as they finish), then every
+filter from every start run batched over all episodes."""
 from __future__ import annotations
 
 import os
@@ -9,7 +9,7 @@ from pathlib import Path
 from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
 from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
-from aligngym.scenarios.campaign.manifest import check_manifest
+from aligngym.scenarios.campaign.manifest import campaign_lock, check_manifest
 from aligngym.scenarios.campaign.runs import filter_threads, run_filter
 from aligngym.scenarios.config import ConfigError
 
@@ -32,8 +32,29 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
         raise ConfigError("--address needs --executor ray")
     workers = workers or os.cpu_count() or 1
     out = Path(out_dir) if out_dir is not None else None
-    if out is not None:
-        check_manifest(out, experiment, seed, resume, force)
+    if out is None:
+        return _run(experiment, episodes, seed, filters, None, resume, workers, progress,
+                    executor, address)
+    claim_directory(out)
+    with campaign_lock(out):           # one writer at a time
+        check_manifest(out, experiment, seed, resume, force, filters)
+        return _run(experiment, episodes, seed, filters, out, resume, workers, progress,
+                    executor, address)
+
+
+def claim_directory(out: Path) -> None:
+    """Create the campaign directory (one-line error if it cannot be made or written)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot create the directory ({exc.strerror})") from None
+    if not os.access(out, os.W_OK):
+        raise ConfigError(f"--out {out}: the directory is not writable")
+
+
+def _run(experiment: Experiment, episodes: int, seed: int, filters: list[str],
+         out: Path | None, resume: bool, workers: int, progress: bool, executor: str,
+         address: str | None) -> CampaignResult:
     seeds = episode_seeds(seed, episodes)
     prepared = prepare_all(experiment, seeds, out, resume, workers, progress, executor,
                            address)
@@ -45,5 +66,3 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
         result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
                                       experiment, filter_threads(name, experiment, workers)))
     return result
-
-

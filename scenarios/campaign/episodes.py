@@ -3,7 +3,6 @@ and loaded as one .npz each (the campaign's episode storage), and the screened
 simulation every pipeline starts from."""
 from __future__ import annotations
 
-import os
 from abc import ABC
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -11,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from aligngym.scenarios.atomic import atomic_path
 from aligngym.scenarios.config import ScenarioConfig
 
 
@@ -52,10 +52,11 @@ class PreparedEpisode(ABC):
                       for field in fields(cls)})
 
     def save(self, path: Path) -> None:
-        tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, **{**self.arrays(), "fault_kind": np.asarray(self.fault_kind, str),
-                         "fault_time": np.asarray(self.fault_time, float)})
-        os.replace(tmp, path)  # atomic: a file on disk is always a complete episode
+        """Write the episode to path atomically: a file on disk is a complete episode
+        (temporary names are unique, so concurrent writers do not collide)."""
+        with atomic_path(path) as tmp:
+            np.savez(tmp, **{**self.arrays(), "fault_kind": np.asarray(self.fault_kind, str),
+                             "fault_time": np.asarray(self.fault_time, float)})
 
     @classmethod
     def load(cls, path: Path) -> "PreparedEpisode":

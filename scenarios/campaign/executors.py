@@ -3,6 +3,10 @@ each finished episode is saved at once, so an interrupted campaign keeps it."""
 from __future__ import annotations
 
 import os
+import signal
+import sys
+import zipfile
+import zlib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
@@ -21,7 +25,8 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
     (``executor``; ``address``: a Ray cluster's, None starts a local instance with
     ``workers`` CPUs); each episode is saved by this process as soon as it arrives, so
     an interrupted campaign keeps its finished episodes whichever executor ran them.
-    With resume, episodes already on disk are loaded instead."""
+    With resume, episodes already on disk are loaded instead (one that does not load is
+    named and simulated again)."""
     from tqdm import tqdm
 
     episode_dir = out_dir / "episodes" if out_dir is not None else None
@@ -31,9 +36,13 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
     def path(s: int) -> Path:
         return episode_dir / f"seed_{s}.npz"
 
-    load = experiment.episode_class.load
-    done = {s: load(path(s)) for s in seeds
-            if resume and episode_dir is not None and path(s).is_file()}
+    done = {}
+    if resume and episode_dir is not None:
+        for s in seeds:
+            if path(s).is_file():
+                episode = load_checked(experiment.episode_class, path(s), s)
+                if episode is not None:
+                    done[s] = episode
     todo = [s for s in seeds if s not in done]
     bar = tqdm(total=len(seeds), initial=len(done), disable=not progress, desc="episodes")
 
@@ -43,18 +52,57 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
         done[s] = episode
         bar.update()
 
-    if executor == "ray":
-        _prepare_on_ray(experiment, todo, finish, workers, address)
-    elif workers <= 1 or len(todo) <= 1:
-        for s in todo:
-            finish(s, experiment.prepare_episode(s))
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(experiment.prepare_episode, s): s for s in todo}
-            for fut in as_completed(futures):
-                finish(futures[fut], fut.result())
-    bar.close()
+    try:
+        if executor == "ray":
+            _prepare_on_ray(experiment, todo, finish, workers, address)
+        elif workers <= 1 or len(todo) <= 1:
+            for s in todo:
+                finish(s, experiment.prepare_episode(s))
+        else:
+            _prepare_in_processes(experiment, todo, finish, workers)
+    finally:
+        bar.close()                # before any message about an interruption
     return [done[s] for s in seeds]
+
+
+def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
+                          workers: int) -> None:
+    """Local worker processes (which ignore Ctrl-C); on an interruption or an error the
+    pool is stopped at once, the finished episodes being saved already."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_interrupt)
+    try:
+        futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
+        for fut in as_completed(futures):
+            finish(futures[fut], fut.result())
+    except BaseException:
+        running = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in running:
+            process.terminate()
+        raise
+    pool.shutdown()
+
+
+def load_checked(episode_class: type, path: Path, seed: int) -> PreparedEpisode | None:
+    """A saved episode, or None (its name and the reason in one line on stderr: it is
+    simulated again) when the file does not load or holds another seed."""
+    try:
+        episode = episode_class.load(path)
+        problem = None if int(episode.seed) == seed else f"it holds seed {int(episode.seed)}"
+    except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile,
+            zlib.error) as exc:
+        episode, problem = None, f"{type(exc).__name__}: {exc}".splitlines()[0][:120]
+    if problem is None:
+        return episode
+    print(f"aligngym: {path} does not load ({problem}); simulating seed {seed} again",
+          file=sys.stderr)
+    return None
+
+
+def _ignore_interrupt() -> None:
+    """Worker processes leave Ctrl-C to the parent (which stops them): no traceback from
+    every worker."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _prepare_task(experiment: Experiment, seed: int) -> PreparedEpisode:

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from aligngym.estimators.alignment import FineResult
-from aligngym.estimators.filters import UnknownFilter, filter_entry
+from aligngym.estimators.adaptation import OBSERVATION_FEATURES
+from aligngym.estimators.filters import UnknownFilter, filter_entry, filter_names, filter_needs
 from aligngym.estimators.model import FilterModel, StateLayout
 from aligngym.estimators.rules import MAX_POINTS
 from aligngym.models.units import arcmin
@@ -53,6 +54,11 @@ class Experiment(ABC):
     """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
     state_count: int = 0
     """Dimension of the experiment's fine-alignment state."""
+    observation_features: frozenset[str] = frozenset()
+    """What its model gives the filters (keys of ``adaptation.OBSERVATION_FEATURES``:
+    e.g. "axes", the measurement's local-level axes); a filter needing more is refused
+    before any episode is simulated (a test runs every filter to confirm the
+    declaration)."""
     default_episodes: int = 50
     """Monte Carlo episodes of ``bench`` without --episodes."""
     setups: dict[str, dict] = {}
@@ -173,6 +179,19 @@ class Experiment(ABC):
         """One-line ConfigError for settings of the scenario the experiment cannot use
         (called before any episode is simulated)."""
 
+    def runnable_filters(self) -> list[str]:
+        """The catalogue's filters this experiment's model can run (models and needs;
+        the parametrised families as their pattern)."""
+        out = []
+        for name in filter_names():
+            probe = name.replace("-N", "-2")
+            entry = filter_entry(probe)
+            if entry.model and entry.model not in self.model_variants:
+                continue
+            if filter_needs(probe, **self.filter_options()) <= self.observation_features:
+                out.append(name)
+        return out
+
     def check_filters(self, filters: list[str]) -> None:
         """One-line ConfigError for an unknown filter, or one whose rule needs more points
         than ``rules.MAX_POINTS`` for this model's dimension."""
@@ -185,6 +204,13 @@ class Experiment(ABC):
                 raise ConfigError(f"filter {name!r} needs the {entry.model} model, which "
                                   f"paper{self.paper} does not build for scenario "
                                   f"{self.scenario!r}")
+            missing = sorted(filter_needs(name, **self.filter_options())
+                             - self.observation_features)
+            if missing:
+                raise ConfigError(f"filter {name!r} ({entry.description}) needs "
+                                  f"{OBSERVATION_FEATURES[missing[0]]}, which paper"
+                                  f"{self.paper}'s model does not give; filters that run "
+                                  "here: " + ", ".join(self.runnable_filters()))
             rule = entry.rule()
             count = rule.point_count(self.state_count)
             if count > MAX_POINTS:

@@ -1,31 +1,84 @@
-"""The campaign directory's manifest (``campaign.json``: experiment settings and seed),
-which decides whether a directory may be used, resumed or replaced."""
+"""The campaign directory: its lock (one writer at a time), its manifest
+(``campaign.json``: the experiment's settings and the seed), which decides whether a
+directory may be used, resumed or replaced, and the check that a resumed campaign does
+not replace finished results."""
 from __future__ import annotations
 
+import csv
+import errno
 import json
 import os
+import socket
+import time
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
+from typing import Iterator
 
+from aligngym.scenarios.atomic import is_temporary, write_json
 from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.config import ConfigError
 
+LOCK_NAME = ".campaign.lock"
+_HELD: dict[Path, tuple[int, int]] = {}
+"""Directories this process holds: path -> (lock file descriptor, nesting depth)."""
+
+
+@contextmanager
+def campaign_lock(out: Path) -> Iterator[None]:
+    """Hold DIR/.campaign.lock for the block (an exclusive ``flock``, which the kernel
+    releases when the holder dies, so a killed run leaves no stale lock); a second
+    writer is refused in one line naming the holder (pid, host, start time). Nested
+    holds by this process are free. Leftover temporary files of killed writers are
+    removed once the lock is taken (nobody else can be writing them)."""
+    import fcntl
+    out = Path(out).resolve()
+    if out in _HELD:
+        fd, depth = _HELD[out]
+        _HELD[out] = (fd, depth + 1)
+        try:
+            yield
+        finally:
+            fd, depth = _HELD[out]
+            _HELD[out] = (fd, depth - 1)
+        return
+    path = out / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot create its lock file ({exc.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+        os.close(fd)
+        if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+            raise ConfigError(f"--out {out} is in use by {holder}; wait for it to finish "
+                              "or use another --out") from None
+        raise
+    os.ftruncate(fd, 0)
+    os.write(fd, f"pid {os.getpid()} on {socket.gethostname()} since "
+                 f"{time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
+    _HELD[out] = (fd, 1)
+    for leftover in [*out.glob(".*"), *(out / "episodes").glob("*")]:
+        if is_temporary(leftover):
+            leftover.unlink(missing_ok=True)
+    try:
+        yield
+    finally:
+        fd, depth = _HELD.pop(out)
+        os.close(fd)                       # releases the flock
+
 
 def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
-                    force: bool = False) -> None:
-    """Create out, or check that it may be used: a directory holding a campaign needs
-    resume (the same experiment and seed, from its campaign.json) or force (its episode
-    files, tables, series, plots, settings and report are removed, so nothing of another
-    seed mixes in)."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(f"--out {out}: cannot create the directory ({exc.strerror})") from None
-    if not os.access(out, os.W_OK):
-        raise ConfigError(f"--out {out}: the directory is not writable")
+                   force: bool = False, filters: list[str] | None = None) -> None:
+    """Check that out may be used (the caller holds its ``campaign_lock``): a directory
+    holding a campaign needs resume (the same experiment and seed, from its
+    campaign.json, and filters that include every filter of its finished results) or
+    force (its episode files, tables, series, plots, settings and report are removed,
+    so nothing of another seed mixes in); then write the manifest."""
     manifest = out / "campaign.json"
-    episodes = [p for p in (out / "episodes").glob("seed_*.npz")
-                if not p.name.endswith(".tmp.npz")]          # not half-written leftovers
+    episodes = [p for p in (out / "episodes").glob("seed_*.npz") if not is_temporary(p)]
     held = manifest.is_file() or bool(episodes)
     if held and not (resume or force):
         raise ConfigError(f"--out {out} holds a campaign; use --resume to continue it or "
@@ -36,17 +89,50 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
     current = {"paper": experiment.paper, "experiment": asdict(experiment), "seed": seed}
     current = json.loads(json.dumps(current))
     if resume and manifest.is_file():
-        saved = json.loads(manifest.read_text())
+        saved = read_manifest(manifest)
         saved.setdefault("paper", current["paper"])
         if saved != current:
             raise ConfigError(f"--resume: {manifest} was written by a different experiment "
                               "or seed; use a new --out directory")
+        finished = finished_filters(out)
+        missing = [f for f in finished if f not in (filters or finished)]
+        if missing:
+            union = [*finished, *[f for f in filters or () if f not in finished]]
+            raise ConfigError(f"--resume: {out}'s results hold {', '.join(finished)}; "
+                              f"--filters {','.join(filters or ())} would drop "
+                              f"{', '.join(missing)}: name them too (--filters "
+                              f"{','.join(union)}) or use a new --out")
     if force and not resume:      # nothing of the old campaign survives to mix in
-        for old in [*(out / "episodes").glob("seed_*.npz"), *out.glob("*.csv"),
-                    *out.glob("*.png"), out / "timeseries.npz", out / "tables.txt",
-                    out / "summary.json", out / "settings.json", out / "report.html",
-                    manifest]:
+        for old in [*episodes, *out.glob("*.csv"), *out.glob("*.png"),
+                    out / "timeseries.npz", out / "tables.txt", out / "summary.json",
+                    out / "settings.json", out / "report.html", manifest]:
             old.unlink(missing_ok=True)
-    tmp = manifest.with_suffix(".tmp")
-    tmp.write_text(json.dumps(current, indent=2))
-    os.replace(tmp, manifest)      # atomic
+    write_json(manifest, current)
+
+
+def read_manifest(manifest: Path) -> dict:
+    """campaign.json as a dict; a damaged one is a one-line error saying what to do."""
+    try:
+        saved = json.loads(manifest.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        reason = getattr(exc, "msg", None) or getattr(exc, "strerror", None) or str(exc)
+        saved, problem = None, f"does not read as JSON ({reason})"
+    else:
+        problem = "is not a JSON object"
+    if not isinstance(saved, dict):
+        raise ConfigError(f"--resume: {manifest} {problem}, so the episodes' experiment "
+                          "and seed are unknown; use --force to start the campaign again "
+                          "(its episodes are simulated anew) or a new --out")
+    return saved
+
+
+def finished_filters(out: Path) -> list[str]:
+    """The filters whose rows results.csv holds (in order), none without one; a results
+    file that does not read is treated as none (it is rewritten at the end)."""
+    path = out / "results.csv"
+    try:
+        with open(path, newline="") as f:
+            names = [row.get("filter") for row in csv.DictReader(f)]
+    except (OSError, csv.Error, UnicodeDecodeError):
+        return []
+    return list(dict.fromkeys(n for n in names if n))

@@ -28,6 +28,7 @@ from aligngym.estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
 from aligngym.models.attitude import dcm_to_quat, quat_to_dcm
 from aligngym.models.earth import TangentPlane
 from aligngym.models.units import arcmin, deg
+from aligngym.scenarios.atomic import save_figure
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, setting,
                                          simulate_screened)
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
@@ -104,6 +105,7 @@ class Paper000Experiment(Experiment):
     out (a diverging filter amplifies last bits without bound: not reproducible)."""
     worlds = ("car",)
     state_count = 18
+    observation_features = frozenset({"conditionally-linear"})
 
     @property
     def episode_class(self):
@@ -143,6 +145,9 @@ class Paper000Experiment(Experiment):
             raise ConfigError(f"--disturbance {self.disturbance!r}; valid: "
                               + ", ".join(DISTURBANCES))
         motion = config.motion
+        if not motion.speed > 0.0:
+            raise ConfigError(f"motion.speed = {motion.speed:g} m/s: paper000's "
+                              "odometer-aided alignment needs the car to drive (speed > 0)")
         start, end = self.coarse_start, self.coarse_start + self.coarse_duration
         driving_end = min(motion.stop_time, config.duration)
         if not (motion.start_time <= start and self.coarse_duration >= 10.0
@@ -510,7 +515,7 @@ def plot_sensor_estimates(result: CampaignResult, out) -> list:
                  "dashed: truth)")
     fig.tight_layout()
     path = out / "sensor_estimates.png"
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
     return [path]
 

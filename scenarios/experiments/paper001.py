@@ -94,6 +94,7 @@ class Paper001Experiment(Experiment):
     worlds = ("car",)
     model_variants = ("position-velocity",)
     state_count = 15
+    observation_features = frozenset({"conditionally-linear", "directions"})
     starts = (START,)
 
     @property

@@ -67,6 +67,7 @@ class Paper002Experiment(Experiment):
     worlds = ("static-platform",)
     filter_keys = ("euler_sigma", "initial_covariance")
     state_count = STATE_COUNT
+    observation_features = frozenset({"selection-H"})
     default_filters = ("ekf", "ukf", "sghkf-2", "sghkf-4")
     starts = (START,)
 

@@ -149,6 +149,8 @@ class Paper003Experiment(Experiment):
     setups = {"paper": PAPER_SETUP}
     worlds = ("ship-prescribed", "ship-waves")
     state_count = 12
+    observation_features = frozenset({"selection-H", "unit-selection-H", "axes",
+                                      "conditionally-linear"})
     starts = STARTS
 
     @property

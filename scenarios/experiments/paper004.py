@@ -39,6 +39,7 @@ from aligngym.estimators.rotation_vector import (EPS, NABLA, PHI, IndexedGpsInsI
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.units import deg, deg_per_h, mg
 from aligngym.models.world import gimbal_C_s_b
+from aligngym.scenarios.atomic import save_figure
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, setting,
                                          simulate_screened)
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
@@ -518,7 +519,7 @@ def consistency_plot(result: CampaignResult, out) -> list:
     fig.suptitle(f"Paper 004, {result.experiment.case}: heading error vs the filter's 3 sigma")
     fig.tight_layout()
     path = out / "consistency.png"
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
     return [path]
 

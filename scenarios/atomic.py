@@ -1,0 +1,59 @@
+"""Outputs written whole or not at all: each file is written under a temporary name in
+its own directory (unique per process and call, hidden, with the final suffix so that
+writers choosing a format by extension keep working) and renamed onto its final name
+when complete (``os.replace``: atomic on one file system). A killed run leaves the old
+file or none, never a partial one; an exception (a full disk, Ctrl-C) removes the
+temporary file."""
+from __future__ import annotations
+
+import json
+import os
+import uuid
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+
+def temporary_name(path: Path) -> Path:
+    """A unique hidden name beside path, with path's suffix: .NAME.PID.RANDOM.tmpSUFFIX."""
+    return path.with_name(f".{path.stem}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp{path.suffix}")
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path to write ``path``'s content to; on leaving the block it is
+    renamed onto ``path``, or removed if the block raised."""
+    path = Path(path)
+    tmp = temporary_name(path)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write text (UTF-8) to path atomically; returns path."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def write_json(path: str | Path, value: Any) -> Path:
+    """Write value as indented JSON to path atomically; returns path."""
+    return write_text(path, json.dumps(value, indent=2))
+
+
+def is_temporary(path: Path) -> bool:
+    """Whether a file name is one of ``temporary_name``'s, or an earlier version's
+    ``NAME.tmp.npz`` (a leftover of a killed run)."""
+    name = path.name
+    return (name.startswith(".") and ".tmp" in name) or name.endswith(".tmp.npz")
+
+
+def save_figure(fig: Any, path: str | Path, **options: Any) -> Path:
+    """``fig.savefig(path, **options)`` atomically (the format from path's suffix)."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, **options)
+    return Path(path)
