@@ -20,10 +20,23 @@ def temporary_name(path: Path) -> Path:
 
 
 @contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
+def atomic_path(path: str | Path, own_directory: bool = False) -> Iterator[Path]:
     """Yield a temporary path to write ``path``'s content to; on leaving the block it is
-    renamed onto ``path``, or removed if the block raised."""
+    renamed onto ``path``, or removed if the block raised. own_directory: the temporary
+    file lives in a hidden directory of its own, removed with it, for writers that run
+    in another process (ffmpeg may still create its file after an interruption: with
+    its directory gone, it cannot)."""
     path = Path(path)
+    if own_directory:
+        import shutil
+        folder = temporary_name(path).with_suffix("")
+        folder.mkdir()
+        try:
+            yield folder / path.name
+            os.replace(folder / path.name, path)
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
+        return
     tmp = temporary_name(path)
     try:
         yield tmp

@@ -300,7 +300,7 @@ class AlignmentEnv(gym.Env):
         path = Path(self.video_path)
         path.parent.mkdir(parents=True, exist_ok=True)
         from aligngym.scenarios.atomic import atomic_path
-        with atomic_path(path) as tmp:
+        with atomic_path(path, own_directory=True) as tmp:
             imageio.mimwrite(tmp, self._frames, fps=self.metadata["render_fps"],
                              macro_block_size=8)
         self._frames = []

@@ -110,7 +110,7 @@ def render_video(config: ScenarioConfig, out: str, seed: int = 0, estimator: str
         return {"path": path, "frames": 1, "seconds": seconds, "seconds_per_frame": seconds}
     times = start + np.arange(int(math.floor((config.duration - start) * fps + 1e-9)) + 1) / fps
     try:                # a killed or interrupted render leaves the old video, not a short one
-        with atomic_path(path) as tmp, imageio.get_writer(
+        with atomic_path(path, own_directory=True) as tmp, imageio.get_writer(
                 tmp, fps=fps, codec="libx264", macro_block_size=8,
                 ffmpeg_log_level="error") as writer:
             for t in times:

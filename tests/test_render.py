@@ -116,6 +116,32 @@ def test_render_writes_a_video(tmp_path):
     assert image.shape == (96, 128, 3) and scene(image).std() > 20
 
 
+def test_an_interrupted_render_leaves_the_old_video(tmp_path, monkeypatch, capsys):
+    """Ctrl-C after three frames: the good video that was there is untouched (the new
+    one was written under a temporary name), nothing else is left, one line, exit 130."""
+    from aligngym.scenarios import render
+    from aligngym.scenarios.cli import main
+    out = tmp_path / "v.mp4"
+    argv = ["render", "static-large-azimuth", "--duration", "1", "--fps", "4", "--size",
+            "96x128", "--out", str(out)]
+    assert main(argv) == 0
+    before = out.read_bytes()
+    frame, count = render.SceneRenderer.frame, []
+
+    def interrupted(self, *args, **kwargs):
+        count.append(1)
+        if len(count) > 3:
+            raise KeyboardInterrupt
+        return frame(self, *args, **kwargs)
+
+    monkeypatch.setattr(render.SceneRenderer, "frame", interrupted)
+    capsys.readouterr()
+    assert main(argv[:-2] + ["--duration", "4", "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "aligngym: interrupted; no output was written (an existing one is unchanged)"]
+    assert out.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["v.mp4"]
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--fps", "500"], "--fps = 500 is out of range"),
     (["--size", "big"], "--size must be HxW"),

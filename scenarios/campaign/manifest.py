@@ -61,7 +61,7 @@ def campaign_lock(out: Path) -> Iterator[None]:
                  f"{time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
     _HELD[out] = (fd, 1)
     for leftover in [*out.glob(".*"), *(out / "episodes").glob("*")]:
-        if is_temporary(leftover):
+        if is_temporary(leftover) and leftover.is_file():
             leftover.unlink(missing_ok=True)
     try:
         yield
