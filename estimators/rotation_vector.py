@@ -46,6 +46,36 @@ def J_r_inv(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) + 0.5 * K + coefficient[..., None, None] * (K @ K)
 
 
+def J_l(phi: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3) (..., 3, 3) at rotation vectors phi (..., 3):
+    I + (1 - cos|phi|)/|phi|^2 [phi x] + (|phi| - sin|phi|)/|phi|^3 [phi x]^2 (series
+    1/2 - |phi|^2/24 and 1/6 - |phi|^2/120 below 1e-4 rad); exp([(phi + d) x]) =
+    exp([(J_l(phi) d) x]) exp([phi x]) to first order in d."""
+    phi = np.asarray(phi, dtype=float)
+    angle = np.linalg.norm(phi, axis=-1)
+    small = angle < 1e-4
+    a = np.where(small, 1.0, angle)
+    first = np.where(small, 0.5 - angle ** 2 / 24.0, (1.0 - np.cos(a)) / a ** 2)
+    second = np.where(small, 1.0 / 6.0 - angle ** 2 / 120.0, (a - np.sin(a)) / a ** 3)
+    K = skew(phi)
+    return np.eye(3) + first[..., None, None] * K + second[..., None, None] * (K @ K)
+
+
+def reset_jacobian(x_hat: np.ndarray, variant: str) -> np.ndarray:
+    """G (..., 15, 15) of the feedback's reset (6.8): the error state after the estimate
+    x_hat is fed back is G (x - x_hat) to first order, so P becomes G P G^T. Attitude:
+    exp([phi+ x]) = exp([phi x]) exp(-[phi^ x]), phi+ ~ J_l(phi^)(phi - phi^); the ST
+    velocity error turns with the attitude correction, dv_ST+ = exp([phi^ x])(dv_ST -
+    dv_ST^) (the classic velocity error is shifted only: identity); position and biases
+    are shifted only."""
+    x_hat = np.asarray(x_hat, dtype=float)
+    G = np.broadcast_to(np.eye(N_STATES), x_hat.shape[:-1] + (N_STATES, N_STATES)).copy()
+    G[..., PHI, PHI] = J_l(x_hat[..., PHI])
+    if variant != "classic":
+        G[..., DV, DV] = rotvec_to_dcm(x_hat[..., PHI])
+    return G
+
+
 @dataclass
 class InsQuantities:
     """What the INS knows at one instant (broadcastable over episodes and points):
@@ -390,7 +420,8 @@ class RotationVectorGnssModel(FilterModel):
     def feedback(self, x, P, live):
         """(6.8) for the episodes whose heading sigma is below feedback_below (all with
         None): C_b^n <- exp([phi x]) C_b^p, v <- v~ - dv (the classic velocity error),
-        p <- p~ - dp, biases accumulated, the state reset (P kept: first order)."""
+        p <- p~ - dp, biases accumulated, the state reset and P <- G P G^T
+        (``reset_jacobian``: the error state changes with a large estimate)."""
         k = self._k
         ready = live.copy()
         if self.feedback_below is not None:
@@ -414,6 +445,9 @@ class RotationVectorGnssModel(FilterModel):
         s.h[b] -= x[b, 8]
         self.ins.gyro_bias[b] += x[b, EPS]
         self.ins.accel_bias[b] += x[b, NABLA]
+        G = reset_jacobian(x[b], self.variant)
+        P = P.copy()
+        P[b] = G @ P[b] @ np.swapaxes(G, -1, -2)
         x[b] = 0.0
         self.feedback_count[b] += 1
         self._record_bias(k)

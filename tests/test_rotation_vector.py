@@ -259,3 +259,45 @@ def test_stukf_aligns_the_moving_car_from_60_degrees(figure8_inputs):
     error = misalignment(np.stack([e.C_s_n_true[:K] for e in episodes]), result.C_s_n)
     assert not result.diverged.any()
     assert np.abs(error[:, -1]).max() < 0.05 * deg
+
+
+def _reset_by_definition(x, x_hat, v_ins, variant):
+    """The error state after (6.8)'s feedback of x_hat, from the definitions alone (scipy
+    for the rotation's log): the truth the pre-reset error x implies (INS attitude I,
+    velocity v_ins), the INS corrected as ``feedback`` corrects it, the error between
+    them expressed in the variant's states."""
+    from scipy.spatial.transform import Rotation
+    from aligngym.estimators.rotation_vector import classic_to_st, st_to_classic
+    classic = variant == "classic"
+    v_true = v_ins - (x[DV] if classic else st_to_classic(x, v_ins)[DV])
+    if variant == "st":
+        dv_hat = st_to_classic(x_hat, v_ins)[DV]
+    elif variant == "st-linear":                        # (6.8)'s small-angle form
+        dv_hat = x_hat[DV] + np.cross(v_ins, x_hat[PHI])
+    else:
+        dv_hat = x_hat[DV]
+    v_plus = v_ins - dv_hat
+    after = x - x_hat
+    after[PHI] = Rotation.from_matrix(Rotation.from_rotvec(x[PHI]).as_matrix()
+                                      @ Rotation.from_rotvec(x_hat[PHI]).as_matrix().T
+                                      ).as_rotvec()
+    after[DV] = v_plus - v_true
+    if not classic:
+        after[DV] = classic_to_st(after, v_plus)[DV]
+    return after
+
+
+@pytest.mark.parametrize("variant", ["st", "st-linear", "classic"])
+def test_the_reset_jacobian_is_the_derivative_of_the_reset(variant):
+    """P <- G P G^T at feedback (ALGORITHMS 6.8, corrected): G against central
+    differences of the reset itself at a large estimate (52 deg of heading, 0.5 m/s)."""
+    from aligngym.estimators.rotation_vector import reset_jacobian
+    rng = np.random.default_rng(3)
+    x_hat = np.concatenate([[0.1, -0.15, 0.9], [0.4, -0.3, 0.1], rng.normal(size=9) * 1e-3])
+    v_ins = np.array([3.0, -2.0, 0.5])
+    h = 1e-6
+    G = np.stack([(_reset_by_definition(x_hat + h * e, x_hat, v_ins, variant)
+                   - _reset_by_definition(x_hat - h * e, x_hat, v_ins, variant)) / (2 * h)
+                  for e in np.eye(N_STATES)], -1)
+    np.testing.assert_allclose(reset_jacobian(x_hat, variant), G, atol=1e-8)
+    assert not np.allclose(G, np.eye(N_STATES), atol=1e-2)      # the reset is not P kept
