@@ -186,17 +186,31 @@ class SingleFadingFactor(InnovationFading):
     name = "single-fading"
 
     def __init__(self, rho: float = 0.95, beta: float = 1.0, floor: float = 1.0,
-                 cap: float = np.inf, derivative_free: bool = False) -> None:
+                 cap: float = np.inf, derivative_free: bool = False,
+                 warm_up: float = 0.0, in_motion_only: bool = False) -> None:
         super().__init__(rho, floor, cap)
+        if not (np.isfinite(warm_up) and warm_up >= 0.0):
+            raise ValueError(f"warm_up must be >= 0 s, got {warm_up}")
         self.beta, self.derivative_free = beta, derivative_free
+        self.warm_up, self.in_motion_only = warm_up, in_motion_only
 
     def adapt(self, ctx):
-        C = self.innovation_covariance(ctx.innovation, ctx.valid)
+        """lambda = 1, and C_k not updated, before ``warm_up`` s (the filter settling: the
+        first innovations, predicted by a much larger P, would make C_k fire lambda
+        although each is inside its own prediction) and, with in_motion_only, while the
+        carrier is still (states unobservable then would be inflated without bound;
+        ALGORITHMS 4.3 step 7)."""
+        active = np.full(ctx.innovation.shape[0], ctx.t >= self.warm_up - 1e-9)
+        if self.in_motion_only and ctx.motion is not None:
+            active &= np.asarray(ctx.motion, bool)
+        valid = (np.ones(ctx.innovation.shape, bool) if ctx.valid is None
+                 else np.asarray(ctx.valid, bool))
+        C = self.innovation_covariance(ctx.innovation, valid & active[:, None])
         HQH = _sandwich(ctx.H, ctx.Q)
         N = C - HQH - self.beta * ctx.R
         M = (ctx.S - ctx.R - HQH) if self.derivative_free else _sandwich(ctx.H, ctx.PhiPPhi)
         lam = self._bound(np.trace(N, axis1=-2, axis2=-1) / np.trace(M, axis1=-2, axis2=-1))
-        lam = lam[:, None]
+        lam = np.where(active & self._started, lam, 1.0)[:, None]
         return Adjustment(lam[:, :, None] * ctx.PhiPPhi + ctx.Q, None, lam)
 
 

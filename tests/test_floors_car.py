@@ -197,11 +197,6 @@ def static_floor_000(car: Car) -> np.ndarray:
 ISSUE27_CKF = ("issue 27: ckf diverges from the 30 deg heading prior (its points at "
                "sqrt(18) sigma); here final NEES 9e3 (15 deg) and 2e5 (30 deg, flagged "
                "diverged) on ideal data, 1e3-2e3 on seeds 0-1")
-ISSUE27_SGKF = ("issue 27 item 1: the strong-tracking factor fires at start-up and "
-                "inflates P; here 21-35' off on ideal data with sigma 29-59' (18-21' even "
-                "from the true start velocity, where rdghkf ends 1.0'), 11-24' off on "
-                "seeds 0-2 (sigma 8-10')")
-
 EKF_000 = ("the EKF's linearisation in phi_U, the filter's own limit: on this ideal drive "
            "from 2, 5, 10, 15.3, 20, 30 deg its final NEES is 2.1, 2.2, 2.5, 16.5, 167, 4244 "
            "(30 deg: level N 0.38' at sigma 0.024'; 15.3 deg: heading 3.9' in the last "
@@ -225,8 +220,7 @@ def test_every_default_filter_is_checked():
 
 
 @pytest.mark.parametrize("name, start", [
-    case("sgkf", "coarse", pytest.mark.xfail(strict=True, reason=ISSUE27_SGKF)),
-    case("sgkf", "large", pytest.mark.xfail(strict=True, reason=ISSUE27_SGKF)),
+    case("sgkf", "coarse"), case("sgkf", "large"),   # with its warm-up (ALGORITHMS 4.3.7)
     case("rdghkf", "coarse"), case("rdghkf", "large"),
     case("ckf", "coarse", pytest.mark.xfail(strict=True, reason=ISSUE27_CKF)),
     case("ckf", "large", pytest.mark.xfail(strict=True, reason=ISSUE27_CKF)),
@@ -259,7 +253,7 @@ def test_000_ideal_data_every_filter_reaches_zero(car000, runs000, name, start):
 
 
 @pytest.mark.parametrize("name", [
-    pytest.param("sgkf", marks=pytest.mark.xfail(strict=True, reason=ISSUE27_SGKF)),
+    "sgkf",
     "rdghkf",
     pytest.param("ckf", marks=pytest.mark.xfail(strict=True, reason=ISSUE27_CKF)),
     "ekf"])

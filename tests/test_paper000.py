@@ -181,6 +181,58 @@ def test_strong_tracking_factor_is_one_when_innovations_match_their_prediction()
             assert lam == pytest.approx(expect)
 
 
+def _settling_factors(policy, epochs=40, batch=4000, motion=None, seed=2):
+    """A scalar random constant settling from P0 = 100 against R = 1 (Q = 0, one
+    measurement per 1-s epoch), each innovation drawn from its own prediction
+    S_k = P_k + R: a consistent filter, so fading has nothing to correct. Returns the
+    factors (B, K) and, per epoch, (mean V_k - R) / P_k (K,), the ratio tr N / tr M of
+    the mean innovation statistic (1: V_k as the current P predicts it)."""
+    from aligngym.estimators.adaptation import AdaptationContext
+    rng = np.random.default_rng(seed)
+    policy.reset(batch)
+    P, R, factors, ratio = 100.0, 1.0, [], []
+    for k in range(epochs):
+        S = P + R
+        e = rng.standard_normal((batch, 1)) * np.sqrt(S)
+        ctx = AdaptationContext(innovation=e, valid=np.ones((batch, 1), bool),
+                                S=np.full((batch, 1, 1), S), P_xz=np.full((batch, 1, 1), P),
+                                PhiPPhi=np.full((batch, 1, 1), P), Q=np.zeros((batch, 1, 1)),
+                                R=np.full((batch, 1, 1), R), H=np.ones((batch, 1, 1)),
+                                t=float(k), motion=motion)
+        factors.append(policy.adapt(ctx).factors[:, 0])
+        ratio.append((policy._C[:, 0, 0].mean() - R) / P)       # V_k, the statistic
+        P = P * R / (P + R)                                       # the KF's update
+    return np.stack(factors, -1), np.array(ratio)
+
+
+def test_strong_tracking_over_a_settling_sequence_waits_for_the_filter_to_settle():
+    """ALGORITHMS 4.3 step 7: while P collapses, V_k carries the early innovations, whose
+    predictions were far larger, and the factor fires on a consistent filter (the mean
+    statistic's ratio 20-50 at k = 1-3, mean lambda 10-25); started after a warm-up,
+    V_k holds only innovations predicted by a settled P: the ratio is near 1 (the slow
+    drift of S keeps it a little above), and lambda = 1 throughout the warm-up."""
+    from aligngym.estimators.adaptation import SingleFadingFactor
+    lam, ratio = _settling_factors(SingleFadingFactor())
+    assert ratio[1:4].min() > 20.0 and lam[:, 1:4].mean() > 10.0   # the start-up defect
+    lam, ratio = _settling_factors(SingleFadingFactor(warm_up=10.0))
+    assert np.all(lam[:, :10] == 1.0)                              # no fading in the warm-up
+    assert 0.8 < ratio[12:].mean() < 1.4 and ratio[12:].max() < 2.5, ratio
+    from aligngym.estimators.filters import make_filter
+    sgkf = make_filter("sgkf").adaptation                          # the catalogue's sgkf
+    assert sgkf.warm_up == 60.0 and sgkf.in_motion_only
+
+
+def test_strong_tracking_does_not_fade_through_a_still():
+    """in_motion_only: an episode standing still keeps lambda = 1 and its V_k (which
+    restarts from its next moving epoch), the moving ones fade as before."""
+    from aligngym.estimators.adaptation import SingleFadingFactor
+    moving = np.arange(4000) % 2 == 0
+    lam, _ = _settling_factors(SingleFadingFactor(in_motion_only=True), motion=moving)
+    free, _ = _settling_factors(SingleFadingFactor())
+    assert np.all(lam[~moving] == 1.0)
+    np.testing.assert_array_equal(lam[moving], free[moving])
+
+
 def test_reduced_gh_is_the_kf_when_nothing_depends_on_the_heading():
     """A, b, h independent of phi_U: the reduced-dimension rule gives the linear moments
     exactly (ALGORITHMS 4.2's second oracle)."""
