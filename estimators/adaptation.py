@@ -210,7 +210,7 @@ class SingleFadingFactor(InnovationFading):
         N = C - HQH - self.beta * ctx.R
         M = (ctx.S - ctx.R - HQH) if self.derivative_free else _sandwich(ctx.H, ctx.PhiPPhi)
         lam = self._bound(np.trace(N, axis1=-2, axis2=-1) / np.trace(M, axis1=-2, axis2=-1))
-        lam = np.where(active & self._started, lam, 1.0)[:, None]
+        lam = np.where(active, lam, 1.0)[:, None]
         return Adjustment(lam[:, :, None] * ctx.PhiPPhi + ctx.Q, None, lam)
 
 
