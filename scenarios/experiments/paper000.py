@@ -99,10 +99,11 @@ class Paper000Experiment(Experiment):
     starts: tuple[str, ...] = STARTS
 
     paper = "000"
-    regress = {"episodes": 2, "seed": 5, "filters": ["rdghkf", "ekf"],
+    regress = {"episodes": 2, "seed": 5, "filters": ["sgkf", "rdghkf", "ekf"],
                "experiment": {"fine_duration": 200.0, "starts": ["coarse"]}}
-    """aligngym regress: ckf and sgkf diverge in some episodes and the large start is left
-    out (a diverging filter amplifies last bits without bound: not reproducible)."""
+    """aligngym regress: ckf diverges from the large start and is left out, with that start
+    (a diverging filter amplifies last bits without bound: not reproducible); sgkf is in
+    since its warm-up (it diverged in 30 % of the coarse starts before)."""
     worlds = ("car",)
     state_count = 18
     observation_features = frozenset({"conditionally-linear"})
