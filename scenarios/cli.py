@@ -41,17 +41,7 @@ class _Version(argparse.Action):
 
 def _float_option(field: str, allow_zero: bool = False):
     """Parser of a finite number > 0 (>= 0 with allow_zero) for the option ``field``."""
-    bound = ">= 0" if allow_zero else "> 0"
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{field} must be a number, got {text!r}") from None
-        if not (math.isfinite(value) and (value > 0.0 or (allow_zero and value == 0.0))):
-            raise argparse.ArgumentTypeError(f"{field} must be {bound}, got {text}")
-        return value
-    return parse
+    return _number_option(field, 0.0, strict=not allow_zero)
 
 
 def _seed(text: str) -> int:
@@ -81,15 +71,18 @@ def _bench_epilog(experiment: type | None) -> str:
     return "\n".join(lines)
 
 
-def _number_option(flag: str, minimum: float | None):
-    """Parser of a finite number >= minimum (any finite number without one)."""
+def _number_option(flag: str, minimum: float | None, strict: bool = False):
+    """Parser of a finite number >= minimum (> with strict; any finite number without a
+    minimum) for the option ``flag``."""
+    bound = ("finite" if minimum is None else f"{'>' if strict else '>='} {minimum:g}")
+
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{flag} must be a number, got {text!r}") from None
-        if not math.isfinite(value) or (minimum is not None and value < minimum):
-            bound = "finite" if minimum is None else f">= {minimum:g}"
+        below = minimum is not None and (value <= minimum if strict else value < minimum)
+        if not math.isfinite(value) or below:
             raise argparse.ArgumentTypeError(f"{flag} must be {bound}, got {text}")
         return value
     return parse

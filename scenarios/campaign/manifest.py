@@ -20,8 +20,8 @@ from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.config import ConfigError
 
 LOCK_NAME = ".campaign.lock"
-_HELD: dict[Path, tuple[int, int]] = {}
-"""Directories this process holds: path -> (lock file descriptor, nesting depth)."""
+_HELD: dict[Path, int] = {}
+"""Directories this process holds: path -> the lock file's descriptor."""
 
 
 @contextmanager
@@ -33,14 +33,8 @@ def campaign_lock(out: Path) -> Iterator[None]:
     removed once the lock is taken (nobody else can be writing them)."""
     import fcntl
     out = Path(out).resolve()
-    if out in _HELD:
-        fd, depth = _HELD[out]
-        _HELD[out] = (fd, depth + 1)
-        try:
-            yield
-        finally:
-            fd, depth = _HELD[out]
-            _HELD[out] = (fd, depth - 1)
+    if out in _HELD:                       # held by an outer block of this process
+        yield
         return
     path = out / LOCK_NAME
     try:
@@ -59,15 +53,14 @@ def campaign_lock(out: Path) -> Iterator[None]:
     os.ftruncate(fd, 0)
     os.write(fd, f"pid {os.getpid()} on {socket.gethostname()} since "
                  f"{time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
-    _HELD[out] = (fd, 1)
+    _HELD[out] = fd
     for leftover in [*out.glob(".*"), *(out / "episodes").glob("*")]:
         if is_temporary(leftover) and leftover.is_file():
             leftover.unlink(missing_ok=True)
     try:
         yield
     finally:
-        fd, depth = _HELD.pop(out)
-        os.close(fd)                       # releases the flock
+        os.close(_HELD.pop(out))           # releases the flock
 
 
 def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
