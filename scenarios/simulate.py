@@ -89,13 +89,14 @@ def make_dynamic_world(config: ScenarioConfig, rngs: dict[str, np.random.Generat
                        pictures: bool = False):
     """The scenario's dynamic MuJoCo world (the car with its road, or the wave-driven
     ship with its sea), drawn from the episode's random streams (``episode_rngs``);
-    pictures: with the car's drawn track (visual only: the same motion)."""
+    pictures: the car dressed to be drawn, its body and track (visual only: the same
+    motion)."""
     motion = config.motion
     if config.world == "car":
         from aligngym.models.car import CarWorld
         return CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
                         roughness_seed=int(rngs["motion"].integers(2 ** 31)),
-                        draw_track=pictures)
+                        pictures=pictures)
     if config.world == "ship-waves":
         from aligngym.models.waves import WaveShipWorld
         return WaveShipWorld(motion, rngs["motion"])

@@ -20,7 +20,7 @@ IMU axis)."""
 @pytest.fixture(scope="module", params=["ring-road-odometer", "figure8-gps"])
 def car_world(request):
     motion = load_scenario(request.param).motion
-    return CarWorld(motion.car_params(), motion.make_track(), motion.profile(), draw_track=True)
+    return CarWorld(motion.car_params(), motion.make_track(), motion.profile(), pictures=True)
 
 
 @pytest.fixture(scope="module")
@@ -109,3 +109,19 @@ def test_gimbal_frames_drawn_only_with_a_gimbal():
     assert "gimbal_outer" not in names(CarParams())
     motion = load_scenario("ring-road-odometer").motion
     assert replace(motion, gimbal_outer_rate=0.1).car_params().gimbal
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.004])
+def test_the_undressed_car_drives_bit_for_bit_like_the_dressed_one(roughness):
+    """The simulation's model leaves the dressing out (pictures=False): the same motion,
+    every step, on a plane and on a rough road."""
+    motion = replace(load_scenario("ring-road-odometer").motion, start_time=0.5,
+                     roughness_rms=roughness)
+    runs = [CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
+                     roughness_seed=3, pictures=pictures).run(3.0) for pictures in (False, True)]
+    bare, dressed = (CarWorld(motion.car_params(), motion.make_track(), motion.profile(),
+                              pictures=pictures).model.ngeom for pictures in (False, True))
+    assert bare < dressed / 3
+    np.testing.assert_array_equal(runs[0].qpos, runs[1].qpos)
+    np.testing.assert_array_equal(runs[0].omega, runs[1].omega)
+    np.testing.assert_array_equal(runs[0].vel, runs[1].vel)
