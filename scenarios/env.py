@@ -230,8 +230,8 @@ class AlignmentEnv(gym.Env):
             result = run.result()
             analysed = campaign.analyse_run(self.estimator, "env", result, [self._episode],
                                             self.experiment)
-            info["metrics"] = campaign.episode_metrics(analysed, 0,
-                                                       self.experiment.rms_window)
+            info["metrics"] = campaign.episode_metrics(analysed, 0, self.experiment,
+                                                       self._episode.fine_start)
         if self.render_mode == "rgb_array" and self.video_path:
             self._frames.append(self.render())
             if self._over:

@@ -41,7 +41,7 @@ def format_tables(result: CampaignResult) -> str:
 def tidy_rows(result: CampaignResult) -> list[dict]:
     """One row per (episode, filter, start)."""
     return [{"seed": seed, "filter": run.filter, "start": run.start,
-             **episode_metrics(run, b, result.experiment.rms_window)}
+             **episode_metrics(run, b, result.experiment, result.episodes[b].fine_start)}
             for run in result.runs for b, seed in enumerate(result.seeds)]
 
 
@@ -106,8 +106,10 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
             for seed, e in zip(result.seeds, result.episodes):
                 writer.writerow([seed, *np.rad2deg(e.coarse_error)])
         written.append(out / "coarse.csv")
-    series = {"t": result.runs[0].result.t - result.runs[0].result.t[0],
-              "seed": np.asarray(result.seeds)}
+    t = result.runs[0].result.t - result.runs[0].result.t[0]
+    fine_start = np.array([e.fine_start for e in result.episodes])
+    series = {"t": t, "fine_start_s": fine_start, "seed": np.asarray(result.seeds),
+              "accuracy_window": result.experiment.accuracy_window(t, float(fine_start[0]))}
     for run in result.runs:
         key = f"{run.filter}__{run.start}"
         series[f"{key}__error_arcmin"] = (run.error_n / arcmin).astype(np.float32)

@@ -100,10 +100,10 @@ def test_convergence_time_is_the_first_time_after_which_heading_stays_within_1_d
     err[..., 2] = np.where(t < 150.0, 2 * deg, 0.5 * deg)
     err[:, np.searchsorted(t, 200.0), 2] = 1.5 * deg
     doctored = replace(run, error_n=err)
-    metrics = run_metrics(doctored, campaign.episodes, 300.0)
+    metrics = run_metrics(doctored, campaign.episodes, campaign.experiment)
     assert metrics["convergence_s"] == pytest.approx(201.0)
     never = replace(run, error_n=np.full_like(err, 2 * deg))
-    assert run_metrics(never, campaign.episodes, 300.0)["convergence_s"] == pytest.approx(t[-1])
+    assert run_metrics(never, campaign.episodes, campaign.experiment)["convergence_s"] == pytest.approx(t[-1])
 
 
 @pytest.mark.parametrize("setting, field", [({"swing": "wild"}, "--swing"),
@@ -191,3 +191,25 @@ def test_error_free_data_align_the_boat_exactly(motion):
     heading = np.abs(result.runs[0].error_n[0, -20:, 2])
     assert heading.max() < 0.05 * deg
     assert np.all(heading < result.runs[0].result.sigma_n[0, -20:, 2])
+
+
+def test_results_csv_and_the_tables_share_one_nees_window(campaign, tmp_path):
+    """results.csv's per-episode nees_mean and rms over the experiment's accuracy window
+    (here [300, 460] s of scenario time) average to the tables' numbers; timeseries.npz
+    says which epochs those are and when the fine stage starts in scenario time."""
+    from aligngym.scenarios.report import tidy_rows, write_outputs
+    summary = paper004_summary(campaign)
+    rows = tidy_rows(campaign)
+    for run in campaign.runs:
+        mine = [r for r in rows if r["filter"] == run.filter]
+        ok = ~run.result.diverged
+        table = summary["fine"][run.filter]["moderate"]
+        per_episode = np.array([r["nees_mean"] for r in mine])
+        assert np.mean(per_episode[ok]) == pytest.approx(table["nees_mean"], rel=1e-12)
+    write_outputs(campaign, tmp_path, None)
+    with np.load(tmp_path / "timeseries.npz") as f:
+        t, start, window = f["t"], f["fine_start_s"], f["accuracy_window"]
+    assert t[0] == 0.0 and np.all(start == 60.0)
+    assert summary["settings"]["rms_window_s"] == [pytest.approx((t + start[0])[window][0]),
+                                                   pytest.approx(t[-1] + start[0])]
+    assert (t + start[0])[window][0] == pytest.approx(300.0)

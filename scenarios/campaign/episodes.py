@@ -40,6 +40,12 @@ class PreparedEpisode(ABC):
     """The data faults the pipeline's screen flagged (``estimators.screen``): kind
     (F,) str and the time (F,) s of each one's first sample."""
 
+    @property
+    def fine_start(self) -> float:
+        """Scenario time of the fine alignment's start (its first epoch), s: the filters'
+        epoch times (``FineResult.t``) count from here."""
+        return float(self.t[0])
+
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything needed to rebuild the episode, as arrays."""
         return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -157,6 +157,12 @@ class Experiment(ABC):
         """NEES (B, K+1) of the states the truth knows; NaN where not defined."""
         return np.full(error_n.shape[:2], np.nan)
 
+    def accuracy_window(self, t: np.ndarray, fine_start: float) -> np.ndarray:
+        """The epochs (bool over t, s since the fine start; fine_start: its scenario time,
+        s) over which the RMS errors and the mean NEES are taken: in results.csv, the
+        tables and the JSON alike. Here the run's last rms_window s."""
+        return t >= t[-1] - self.rms_window - 1e-9
+
     def nees_dof(self) -> int:
         """Dimension of the states ``nees`` compares with the truth: its chi-square degrees
         of freedom (0: no NEES)."""

@@ -87,11 +87,15 @@ def concatenate_results(parts: list[FineResult]) -> FineResult:
                       nis=cat("nis"), nis_dof=cat("nis_dof"))
 
 
-def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:
-    """The per-episode metrics of episode b of a run (one row of the tidy table)."""
+def episode_metrics(run: FilterRun, b: int, experiment: Experiment,
+                    fine_start: float) -> dict:
+    """The per-episode metrics of episode b of a run (one row of the tidy table): final
+    errors and sigmas; RMS errors and the mean NEES over the experiment's
+    ``accuracy_window``; times (convergence, divergence) in s since the fine start
+    (fine_start: its scenario time, s)."""
     r = run.result
-    t = r.t
-    in_window = t >= t[-1] - rms_window - 1e-9
+    t = r.t - r.t[0]
+    in_window = experiment.accuracy_window(t, fine_start)
     rms = np.sqrt(np.mean(run.error_n[b, in_window] ** 2, axis=0)) / arcmin
     row = {}
     for prefix, values in (("final", run.error_n[b, -1] / arcmin), ("rms", rms),
@@ -99,13 +103,13 @@ def episode_metrics(run: FilterRun, b: int, rms_window: float) -> dict:
         row.update({f"{prefix}_{a}_arcmin": float(v) for a, v in zip(AXES, values)})
     row.update({f"final_{a}_arcmin": float(v) for a, v in
                 zip(("pitch", "roll", "heading"), run.euler_error[b, -1] / arcmin)})
-    nees = run.nees[b, 1:]
+    nees = run.nees[b, in_window & (t > 0)]
     row.update({
         "heading_convergence_s": float(run.heading_convergence[b]),
         "nees_mean": float(np.mean(nees)) if np.isfinite(nees).any() else None,
         "nees_final": float(run.nees[b, -1]) if np.isfinite(run.nees[b, -1]) else None,
         "diverged": bool(run.diverged[b]), "diverged_reason": run.reason[b],
-        "diverged_time_s": float(r.diverged_time[b] - t[0]) if r.diverged[b] else None,
+        "diverged_time_s": float(r.diverged_time[b] - r.t[0]) if r.diverged[b] else None,
         "covariance_repairs": int(r.repairs[b]),
         "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0]})
     return row

@@ -189,6 +189,10 @@ class Paper002Episode(PreparedEpisode):
 
     _FIELDS = ("K_axis", "Q", "Q_mid", "U")
 
+    @property
+    def fine_start(self) -> float:
+        return float(self.integrals.t[0])
+
     def arrays(self):
         ins = self.integrals
         return {"seed": self.seed, "start_error": self.start_error, "t": ins.t,

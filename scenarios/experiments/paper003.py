@@ -256,6 +256,10 @@ class Paper003Episode(PreparedEpisode):
     coarse_error: np.ndarray
     inputs: FineInputs
 
+    @property
+    def fine_start(self) -> float:
+        return float(self.inputs.t[0])
+
     def arrays(self) -> dict[str, np.ndarray]:
         return {"seed": self.seed, "coarse_error": self.coarse_error, "t": self.inputs.t,
                 "C_s_s0": self.inputs.C_s_s0[0], "dW": self.inputs.dW[0],

@@ -229,6 +229,10 @@ class Paper004Experiment(Experiment):
             return 600.0
         return self.coarse_duration + 0.5 * (duration - self.coarse_duration)
 
+    def accuracy_window(self, t: np.ndarray, fine_start: float) -> np.ndarray:
+        """[accuracy_start, end] of scenario time (``Experiment.accuracy_window``)."""
+        return t + fine_start >= self.accuracy_start(float(t[-1] + fine_start)) - 1e-9
+
     def tuning(self, config: ScenarioConfig) -> RotationVectorTuning:
         """The filter's belief: the datasheet's IMU (``ImuTuning.from_spec``), the
         receiver's sigmas, P0 attitude from the start's row of MISALIGNMENTS."""
@@ -398,17 +402,18 @@ def state_errors(result, episodes: list[Paper004Episode], error_n: np.ndarray) -
         - np.stack([e.accel_bias for e in episodes])[:, None]], -1)
 
 
-def run_metrics(run, episodes: list[Paper004Episode], rms_start: float) -> dict:
+def run_metrics(run, episodes: list[Paper004Episode], experiment: Paper004Experiment) -> dict:
     """One filter's numbers over the episodes: RMS of the hull's pitch, roll, heading
-    error over [rms_start, end] (s of scenario time; deg; per episode, then RMS over the
-    episodes that did not diverge numerically), heading convergence (s of scenario time,
-    the run's start at 0: first time after which |heading error| <= 1 deg, the run's end
-    if never; median and 90th percentile), diverged and not-converged fractions, NEES (9 states; mean over the
-    epochs after rms_start, then over episodes), the fraction of epochs whose heading
-    error lies inside the filter's own 3 sigma."""
+    error over the accuracy window ([rms_start, end], s of scenario time; deg; per
+    episode, then RMS over the episodes that did not diverge numerically), heading
+    convergence (s of scenario time: first time after which |heading error| <= 1 deg, the
+    run's end if never; median and 90th percentile), diverged and not-converged
+    fractions, NEES (9 states; mean over the same window, then over episodes: results.csv's
+    nees_mean per episode), the fraction of epochs whose heading error lies inside the
+    filter's own 3 sigma."""
     r = run.result
-    t = r.t - r.t[0] + episodes[0].t[0]          # scenario time of the epochs
-    window = t >= rms_start - 1e-9
+    t = r.t - r.t[0] + episodes[0].fine_start          # scenario time of the epochs
+    window = experiment.accuracy_window(r.t - r.t[0], episodes[0].fine_start)
     ok = ~r.diverged
     err = run.euler_error[:, window]
     rms = np.sqrt(np.mean(err ** 2, axis=1))                      # (B, 3)
@@ -443,7 +448,7 @@ def paper004_summary(result: CampaignResult) -> dict:
     end = (float(result.runs[0].result.t[-1] + result.episodes[0].t[0]) if result.runs
            else exp.duration)
     rms_start = exp.accuracy_start(end)
-    fine = {run.filter: {level: run_metrics(run, result.episodes, rms_start)}
+    fine = {run.filter: {level: run_metrics(run, result.episodes, exp)}
             for run in result.runs}
     coarse = np.stack([e.coarse_error for e in result.episodes])
     return {"fine": fine,
