@@ -157,6 +157,13 @@ class Experiment(ABC):
         """NEES (B, K+1) of the states the truth knows; NaN where not defined."""
         return np.full(error_n.shape[:2], np.nan)
 
+    def unmodelled_floor(self, episodes: list[PreparedEpisode]) -> np.ndarray | None:
+        """The final misalignment (B, 3) rad, E, N, U, that the episodes' sensor errors
+        leave and the model's states cannot represent (a converged filter ends on it with a
+        sigma that ignores it); None where there is none. The divergence judgement measures
+        the final error from it."""
+        return None
+
     def accuracy_window(self, t: np.ndarray, fine_start: float) -> np.ndarray:
         """The epochs (bool over t, s since the fine start; fine_start: its scenario time,
         s) over which the RMS errors and the mean NEES are taken: in results.csv, the
@@ -238,6 +245,7 @@ class FilterRun:
     diverged: np.ndarray       # (B,)
     reason: list[str]
     heading_convergence: np.ndarray  # (B,) s after the start of fine alignment
+    floor: np.ndarray | None = None  # (B, 3) rad: ``Experiment.unmodelled_floor``
 
 
 @dataclass

@@ -18,19 +18,25 @@ from aligngym.scenarios.campaign.experiment import AXES, Experiment, FilterRun
 def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],
                 experiment: Experiment, divergence: DivergenceRule = DivergenceRule()
                 ) -> FilterRun:
-    """Errors, body Euler errors, NEES, divergence and convergence time of a run."""
+    """Errors, body Euler errors, NEES, divergence and convergence time of a run; the
+    divergence judged on the final error less the experiment's ``unmodelled_floor``."""
     K = result.t.size
     C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
     error_n = misalignment(C_true, result.C_s_n)
     C_b_n_est = result.C_s_n @ np.swapaxes(np.stack([e.C_s_b[:K] for e in episodes]), -1, -2)
     eul = euler_error(np.stack([e.C_b_n_true[:K] for e in episodes]), C_b_n_est)
-    diverged, reason = divergence.apply(error_n[:, -1], result.sigma_n[:, -1],
+    floor = experiment.unmodelled_floor(episodes)
+    final = error_n[:, -1] if floor is None else error_n[:, -1] - floor
+    diverged, reason = divergence.apply(final, result.sigma_n[:, -1],
                                         result.diverged, result.diverged_reason)
+    if floor is not None:
+        reason = [r.replace("final error", "final error - floor") for r in reason]
     heading = convergence_time(result.t - result.t[0], error_n[:, :, 2],
                                experiment.heading_threshold_arcmin * arcmin)
     return FilterRun(filter=name, start=start, result=result, error_n=error_n,
                      euler_error=eul, nees=experiment.nees(result, episodes, error_n),
-                     diverged=diverged, reason=reason, heading_convergence=heading)
+                     diverged=diverged, reason=reason, heading_convergence=heading,
+                     floor=floor)
 
 
 def run_filter(name: str, start: str, start_error: np.ndarray,
