@@ -212,6 +212,20 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
     rep = sub.add_parser("report", help=rep_help, description=rep_help)
     rep.add_argument("dir", metavar="DIR", help="a bench --out directory (or a directory of "
                      "them, as bench paper004 --swing all writes)")
+    rpr_help = ("run each paper's claims (from its text) on the testbed and print each "
+                "beside what was measured, with a verdict: reproduced, or not and why")
+    rpr = sub.add_parser("reproduce", help=rpr_help, description=rpr_help)
+    rpr.add_argument("papers", metavar="PAPER", help="an experiment (" +
+                     ", ".join(experiment_names()) + "), a comma-separated list, or all")
+    rpr.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
+                     help="episodes per campaign (default: each paper's own, "
+                     "Experiment.reproduce; all of them take about 10 min on 2 cores)")
+    rpr.add_argument("--seed", type=int, default=None, metavar="S",
+                     help="campaign seed (default: each paper's own)")
+    rpr.add_argument("--out", metavar="DIR", help="write DIR/claims.md (the page, with the "
+                     "figures) and each campaign's outputs under DIR/PAPER/")
+    rpr.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
+                     help="parallel processes (default: all cores)")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
                          "its stored baseline; exit 1 when a metric moved beyond tolerance")
     reg.add_argument("--papers", default=None,
@@ -450,6 +464,27 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from aligngym.scenarios.config import ConfigError
+    from aligngym.scenarios.reproduce import reproduce
+
+    names = experiment_names()
+    papers = (list(names) if args.papers == "all"
+              else [p.strip() for p in args.papers.split(",") if p.strip()])
+    unknown = [p for p in papers if p not in names]
+    if unknown or not papers:
+        raise ConfigError(f"reproduce {args.papers!r}: valid: all, " + ", ".join(names))
+    if args.out:
+        _check_writable(str(Path(args.out) / "claims.md"), "--out")
+    _, text = reproduce(papers, episodes=args.episodes, seed=args.seed,
+                        out_dir=Path(args.out) if args.out else None, workers=args.workers,
+                        log=lambda line: print(line, flush=True))
+    print(text)
+    return 0
+
+
 def _cmd_regress(args: argparse.Namespace) -> int:
     from aligngym.scenarios.regress import BASELINE_DIR, campaigns, regress
 
@@ -496,6 +531,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_bench(args)
         if args.command == "regress":
             return _cmd_regress(args)
+        if args.command == "reproduce":
+            return _cmd_reproduce(args)
         if args.command == "report":
             return _cmd_report(args)
         if args.command == "render":

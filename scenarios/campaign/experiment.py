@@ -66,6 +66,11 @@ class Experiment(ABC):
     regress: dict | None = None
     """The regression campaign (``aligngym regress``): episodes, seed, filters and the
     settings that differ from the defaults ("experiment"); None: not in regress."""
+    claims: tuple = ()
+    """The paper's claims (``scenarios.reproduce.Claim``), checked by ``aligngym
+    reproduce``."""
+    reproduce: dict | None = None
+    """The claims' campaigns: {"episodes", "seed"} (``aligngym reproduce``)."""
 
     @classmethod
     def flagged_settings(cls) -> list:

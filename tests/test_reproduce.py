@@ -1,0 +1,56 @@
+"""aligngym reproduce: each paper's claims judged on its campaigns; claims that need the same
+campaign share one run; a claim that does not hold says why; the page lists them all."""
+import pytest
+
+from aligngym.scenarios.campaign.claims import Claim
+from aligngym.scenarios.cli import main
+from aligngym.scenarios.experiments import experiment_class, experiment_names
+from aligngym.scenarios.reproduce import format_verdicts, reproduce
+
+
+def test_every_paper_declares_its_claims_with_a_reason_where_they_may_fail():
+    for name in experiment_names():
+        claims = experiment_class(name).claims
+        assert claims, name
+        for claim in claims:
+            assert isinstance(claim, Claim) and claim.text and claim.where and claim.numbers
+            assert claim.setup == "default" or claim.setup in experiment_class(name).setups
+
+
+def test_paper003_claims_share_two_campaigns_and_the_page_is_written(tmp_path):
+    log = []
+    verdicts, text = reproduce(["paper003"], episodes=2, out_dir=tmp_path, workers=1,
+                               log=log.append)
+    assert len(log) == 2            # default and paper setups: one campaign each
+    assert len(verdicts) == len(experiment_class("paper003").claims)
+    assert {v.claim.setup for v in verdicts} == {"default", "paper"}
+    for v in verdicts:
+        assert set(v.measured) == set(v.claim.numbers)
+        assert v.reproduced == bool(v.claim.holds(v.measured))
+    page = (tmp_path / "paper003" / "claims.md").read_text()
+    assert page.count("\n| ") == len(verdicts) + 2 and "fine_error_" in page
+    assert "paper003/claims.md" in (tmp_path / "claims.md").read_text()
+    assert (tmp_path / "paper003" / "paper-2" / "results.csv").exists()
+    assert f"of {len(verdicts)} claims reproduced" in text
+
+
+def test_a_claim_that_does_not_hold_prints_its_reason():
+    from aligngym.scenarios.reproduce import Verdict
+    claim = Claim("x beats y", "sec. 1", {"x": "a", "y": "b"}, lambda n: n["x"] < n["y"],
+                  "y is the better here, measured")
+    text = format_verdicts([Verdict("paperX", claim, {"x": 2.0, "y": 1.0}, False)])
+    assert "NOT REPRODUCED" in text and "why: y is the better here, measured" in text
+    assert "0 of 1 claims reproduced" in text
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["reproduce", "paper009"], "reproduce 'paper009': valid: all, paper000"),
+    (["reproduce", "paper002", "--episodes", "0"], "--episodes must be an integer >= 1")])
+def test_bad_reproduce_arguments_are_one_line(argv, message, capsys):
+    try:
+        status = main(argv)
+    except SystemExit as exc:     # argparse's own refusal
+        status = exc.code
+    assert status == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert message in err[-1]
