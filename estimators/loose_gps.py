@@ -92,6 +92,11 @@ class LooseTuning:
     (m, body frame): the GPS heading is that of v_G + C_b^e (w_eb x offset). Zero (001):
     the antenna's own track heading, off the body heading by the kinematic sideslip
     (distance ahead of the rear axle / turn radius)."""
+    heading_sideslip_arm: float = 0.0
+    """Distance (m) the heading point lies ahead of the rear axle: its track is off the
+    body heading by about arm |w_z| / v (the kinematic sideslip; w_z the INS's yaw rate, v
+    the GPS horizontal speed), which R's heading sigma then includes beside eq. 4's.
+    0: eq. 4's sigma alone (001)."""
 
 
 @dataclass
@@ -284,7 +289,13 @@ class LooselyCoupledModel(FilterModel):
         R_pos_n = np.diag([tu.gps_position_sigma_h ** 2] * 2 + [tu.gps_position_sigma_v ** 2])
         R[:, 0:3, 0:3] = C_ne @ R_pos_n @ C_en
         R[:, 3:6, 3:6] = np.eye(3) * tu.gps_velocity_sigma ** 2
-        R[:, HEADING, HEADING] = np.where(use, inp.gps_heading_sigma[:, k + 1], 1.0) ** 2
+        heading_var = inp.gps_heading_sigma[:, k + 1] ** 2
+        if tu.heading_sideslip_arm:
+            w_z = (self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E))[:, 2]
+            slip = tu.heading_sideslip_arm * np.abs(w_z) / np.maximum(speed_gps,
+                                                                     tu.heading_min_speed)
+            heading_var = heading_var + slip ** 2
+        R[:, HEADING, HEADING] = np.where(use, heading_var, 1.0)
         directions = np.zeros((B, 7, 15))
         directions[:, np.arange(6), np.arange(6)] = 1.0
         # 001 eqs. 17-20 weigh the heading about the local vertical, R_Le(3, :), even

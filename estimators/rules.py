@@ -171,17 +171,25 @@ def _sqrt_psd(P: np.ndarray) -> np.ndarray:
 class UnscentedRule(SigmaPointRule):
     """Scaled unscented transform (Julier & Uhlmann 2004): lambda = alpha^2 (n + kappa) - n,
     points 0 and +-sqrt(n + lambda) e_j; W_0 = lambda / (n + lambda),
-    W_0^c = W_0 + 1 - alpha^2 + beta, W_j = 1 / (2 (n + lambda)). kappa None means 3 - n."""
+    W_0^c = W_0 + 1 - alpha^2 + beta, W_j = 1 / (2 (n + lambda)). kappa None means 3 - n;
+    spread, when given, sets n + kappa itself (the points at +-sqrt(spread) sigma with
+    alpha 1, whatever n)."""
 
-    def __init__(self, alpha: float = 1.0, beta: float = 2.0, kappa: float | None = 0.0):
+    def __init__(self, alpha: float = 1.0, beta: float = 2.0, kappa: float | None = 0.0,
+                 spread: float | None = None):
         if not (alpha > 0.0 and np.isfinite(alpha)):
             raise ValueError(f"unscented alpha must be > 0, got {alpha}")
-        self.alpha, self.beta, self.kappa = alpha, beta, kappa
-        self.has_negative_weights = kappa is None or kappa < 0.0 or alpha < 1.0
-        self.name = f"unscented(alpha={alpha:g}, beta={beta:g}, kappa={kappa})"
+        if spread is not None and not (spread > 0.0 and np.isfinite(spread)):
+            raise ValueError(f"unscented spread n + kappa must be > 0, got {spread}")
+        self.alpha, self.beta, self.kappa, self.spread = alpha, beta, kappa, spread
+        self.has_negative_weights = (spread is not None or kappa is None or kappa < 0.0
+                                     or alpha < 1.0)
+        self.name = (f"unscented(alpha={alpha:g}, beta={beta:g}, "
+                     + (f"n+kappa={spread:g})" if spread is not None else f"kappa={kappa})"))
 
     def _weights(self, n):
-        kappa = 3.0 - n if self.kappa is None else self.kappa
+        kappa = (self.spread - n if self.spread is not None
+                 else 3.0 - n if self.kappa is None else self.kappa)
         lam = self.alpha ** 2 * (n + kappa) - n
         scale = np.sqrt(n + lam)
         xi = np.vstack([np.zeros(n), scale * np.eye(n), -scale * np.eye(n)])

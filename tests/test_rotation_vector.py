@@ -243,7 +243,7 @@ def test_stekf_aligns_the_moving_car_from_60_degrees(figure8_inputs):
 
 
 def test_stukf_aligns_the_moving_car_from_60_degrees(figure8_inputs):
-    """The registry's stukf (kappa = 3 - n: points at sqrt(3) sigma; with kappa = 0 they
+    """The registry's stukf (n + kappa = 1.5: points at 1.22 sigma; with kappa = 0 they
     sit at sqrt(15) x 45-60 deg, past pi, and it fails) on the transformed model, closed
     loop: from (10, -10, 60) deg to 0.05 deg in 170 s (measured 0.004-0.011 deg)."""
     from aligngym.estimators.alignment import run_alignment

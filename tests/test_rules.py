@@ -8,7 +8,7 @@ from aligngym.estimators.rules import (CubatureRule, GaussHermiteRule, Lineariza
                               ReducedGaussHermiteRule, SparseGridGaussHermiteRule,
                               UnscentedRule, gauss_hermite_1d)
 
-RULES = [UnscentedRule(), UnscentedRule(kappa=None), CubatureRule(), GaussHermiteRule(3),
+RULES = [UnscentedRule(), UnscentedRule(kappa=None), UnscentedRule(spread=1.5), CubatureRule(), GaussHermiteRule(3),
          SparseGridGaussHermiteRule(2), SparseGridGaussHermiteRule(3),
          SparseGridGaussHermiteRule(3, "linear"), SparseGridGaussHermiteRule(4)]
 
@@ -221,3 +221,16 @@ def test_reduced_gauss_hermite_equals_the_full_tensor_rule():
         np.testing.assert_allclose(u, v, atol=1e-12)
     assert ReducedGaussHermiteRule(7).point_count(n, nonlinear=1) == 7
     assert GaussHermiteRule(7).point_count(n) == 7 ** 3
+
+
+def test_unscented_spread_places_the_points_and_equals_its_kappa():
+    """spread = n + kappa: the points at +-sqrt(spread) whatever n; for 004's 15 states
+    spread 1.5 is kappa -13.5 exactly."""
+    xi, wm, wc = UnscentedRule(spread=1.5).points(15)
+    assert np.abs(xi).max() == pytest.approx(np.sqrt(1.5), rel=1e-14)
+    xk, wmk, wck = UnscentedRule(kappa=-13.5).points(15)
+    np.testing.assert_allclose(xi, xk, rtol=1e-14)
+    np.testing.assert_allclose(wm, wmk, rtol=1e-14)
+    np.testing.assert_allclose(wc, wck, rtol=1e-14)
+    with pytest.raises(ValueError, match="spread n \\+ kappa must be > 0"):
+        UnscentedRule(spread=0.0)

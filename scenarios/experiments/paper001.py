@@ -85,6 +85,10 @@ class Paper001Experiment(Experiment):
     heading_point: str = setting("antenna", "the body point whose velocity gives the GPS "
                                  "heading: the antenna (the paper) or the rear axle (no "
                                  "kinematic sideslip)", choices=("antenna", "rear-axle"))
+    heading_sigma: str = setting("eq4", "the GPS heading's sigma: 001 eq. 4's alone, or "
+                                 "with the kinematic sideslip of the heading point (its "
+                                 "distance ahead of the rear axle x yaw rate / speed)",
+                                 choices=("eq4", "sideslip"))
     rms_window: float = 60.0
     heading_threshold_arcmin: float = 30.0
     default_filters: tuple[str, ...] = SCHEMES
@@ -198,6 +202,8 @@ class Paper001Experiment(Experiment):
         if self.heading_point not in HEADING_POINTS:
             raise ConfigError(f"--heading-point {self.heading_point!r}; valid: "
                               + ", ".join(HEADING_POINTS))
+        if self.heading_sigma not in ("eq4", "sideslip"):
+            raise ConfigError(f"--heading-sigma {self.heading_sigma!r}; valid: eq4, sideslip")
         if not (np.isfinite(self.outage) and self.outage >= 0.0):
             raise ConfigError(f"--outage {self.outage:g} s must be >= 0")
         if self.outage > 0.0:
@@ -225,7 +231,10 @@ class Paper001Experiment(Experiment):
             gps_position_sigma_h=gps.position_sigma_h, gps_position_sigma_v=gps.position_sigma_v,
             gps_velocity_sigma=gps.velocity_sigma, use_heading=heading,
             heading_min_speed=self.heading_min_speed, motion_speed=self.motion_speed,
-            heading_offset_b=tuple(float(v) for v in offset))
+            heading_offset_b=tuple(float(v) for v in offset),
+            heading_sideslip_arm=(0.0 if self.heading_sigma == "eq4" else float(
+                np.subtract(motion.gps_antenna_b, motion.car_params().rear_axle_b)[1]
+                + offset[1])))
 
     def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
                         ) -> "Paper001Episode":
