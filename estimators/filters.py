@@ -332,7 +332,7 @@ FILTERS: dict[str, FilterEntry] = {
     "ukf": FilterEntry(UnscentedRule, NoAdaptation,
                        "unscented KF (alpha 1, beta 2, kappa 0)"),
     "ukf-3n": FilterEntry(lambda: UnscentedRule(kappa=None), NoAdaptation,
-                          "unscented KF with kappa = 3 - n (the STUKF's points, on the "
+                          "unscented KF with kappa = 3 - n (PSINS's UKF; on the "
                           "experiment's own model: 004's classic UKF)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
 }

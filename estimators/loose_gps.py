@@ -292,8 +292,8 @@ class LooselyCoupledModel(FilterModel):
         heading_var = inp.gps_heading_sigma[:, k + 1] ** 2
         if tu.heading_sideslip_arm:
             w_z = (self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E))[:, 2]
-            slip = tu.heading_sideslip_arm * np.abs(w_z) / np.maximum(speed_gps,
-                                                                     tu.heading_min_speed)
+            slip = tu.heading_sideslip_arm * np.abs(w_z) / np.maximum(
+                speed_gps, max(tu.heading_min_speed, 0.1))
             heading_var = heading_var + slip ** 2
         R[:, HEADING, HEADING] = np.where(use, heading_var, 1.0)
         directions = np.zeros((B, 7, 15))

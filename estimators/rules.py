@@ -172,8 +172,8 @@ class UnscentedRule(SigmaPointRule):
     """Scaled unscented transform (Julier & Uhlmann 2004): lambda = alpha^2 (n + kappa) - n,
     points 0 and +-sqrt(n + lambda) e_j; W_0 = lambda / (n + lambda),
     W_0^c = W_0 + 1 - alpha^2 + beta, W_j = 1 / (2 (n + lambda)). kappa None means 3 - n;
-    spread, when given, sets n + kappa itself (the points at +-sqrt(spread) sigma with
-    alpha 1, whatever n)."""
+    spread, when given, sets n + kappa itself (with alpha 1 the points sit at
+    +-sqrt(spread) sigma whatever n; alpha scales them)."""
 
     def __init__(self, alpha: float = 1.0, beta: float = 2.0, kappa: float | None = 0.0,
                  spread: float | None = None):
@@ -181,6 +181,8 @@ class UnscentedRule(SigmaPointRule):
             raise ValueError(f"unscented alpha must be > 0, got {alpha}")
         if spread is not None and not (spread > 0.0 and np.isfinite(spread)):
             raise ValueError(f"unscented spread n + kappa must be > 0, got {spread}")
+        if spread is not None and kappa not in (0.0, None):
+            raise ValueError(f"unscented: give kappa ({kappa}) or spread ({spread}), not both")
         self.alpha, self.beta, self.kappa, self.spread = alpha, beta, kappa, spread
         self.has_negative_weights = (spread is not None or kappa is None or kappa < 0.0
                                      or alpha < 1.0)

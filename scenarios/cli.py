@@ -220,7 +220,7 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
     rpr.add_argument("--episodes", type=_positive_int("--episodes"), metavar="N",
                      help="episodes per campaign (default: each paper's own, "
                      "Experiment.reproduce; all of them take about 10 min on 2 cores)")
-    rpr.add_argument("--seed", type=int, default=None, metavar="S",
+    rpr.add_argument("--seed", type=_seed, default=None, metavar="S",
                      help="campaign seed (default: each paper's own)")
     rpr.add_argument("--out", metavar="DIR", help="write DIR/claims.md (the page, with the "
                      "figures) and each campaign's outputs under DIR/PAPER/")
@@ -475,7 +475,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
               else [p.strip() for p in args.papers.split(",") if p.strip()])
     unknown = [p for p in papers if p not in names]
     if unknown or not papers:
-        raise ConfigError(f"reproduce {args.papers!r}: valid: all, " + ", ".join(names))
+        raise ConfigError(f"reproduce: unknown paper {(unknown or [args.papers])[0]!r}; "
+                          "valid: all, " + ", ".join(names))
     if args.out:
         _check_writable(str(Path(args.out) / "claims.md"), "--out")
     _, text = reproduce(papers, episodes=args.episodes, seed=args.seed,

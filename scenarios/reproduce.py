@@ -26,8 +26,6 @@ class Verdict:
     measured: dict[str, float]
     reproduced: bool
 
-    def line(self) -> str:
-        return "reproduced" if self.reproduced else "not reproduced: " + self.claim.reason
 
 
 def measure(claim: Claim, result, metrics: dict[str, float]) -> dict[str, float]:
@@ -125,7 +123,7 @@ def paper_page(paper: str, verdicts: list[Verdict], episodes: int, seed: int | N
 def summary_page(verdicts: list[Verdict], episodes: dict[str, int], seconds: float) -> str:
     """All papers' claims, one line each, with links to the papers' pages."""
     lines = ["# The papers' claims, reproduced or explained", "",
-             f"`aligngym reproduce all`: {', '.join(f'{p} {n}' for p, n in episodes.items())} "
+             f"`aligngym reproduce`: {', '.join(f'{p} {n}' for p, n in episodes.items())} "
              f"episodes per campaign, {seconds / 60:.1f} min. Each paper's page has the "
              "numbers and the figures.", "", "| paper | claim | setup | verdict |",
              "| --- | --- | --- | --- |"]

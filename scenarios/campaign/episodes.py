@@ -42,8 +42,9 @@ class PreparedEpisode(ABC):
 
     @property
     def fine_start(self) -> float:
-        """Scenario time of the fine alignment's start (its first epoch), s: the filters'
-        epoch times (``FineResult.t``) count from here."""
+        """Scenario time of the fine alignment's start (its first epoch), s. Episodes with
+        a ``t`` (scenario time of the epochs) give its first; the others override. The
+        campaign's analysis counts its times from here (``FineResult.t - t[0]``)."""
         return float(self.t[0])
 
     def arrays(self) -> dict[str, np.ndarray]:

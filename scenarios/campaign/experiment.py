@@ -67,7 +67,7 @@ class Experiment(ABC):
     """The regression campaign (``aligngym regress``): episodes, seed, filters and the
     settings that differ from the defaults ("experiment"); None: not in regress."""
     claims: tuple = ()
-    """The paper's claims (``scenarios.reproduce.Claim``), checked by ``aligngym
+    """The paper's claims (``scenarios.campaign.claims.Claim``), checked by ``aligngym
     reproduce``."""
     reproduce: dict | None = None
     """The claims' campaigns: {"episodes", "seed"} (``aligngym reproduce``)."""
@@ -171,8 +171,9 @@ class Experiment(ABC):
 
     def accuracy_window(self, t: np.ndarray, fine_start: float) -> np.ndarray:
         """The epochs (bool over t, s since the fine start; fine_start: its scenario time,
-        s) over which the RMS errors and the mean NEES are taken: in results.csv, the
-        tables and the JSON alike. Here the run's last rms_window s."""
+        s) over which results.csv's RMS errors and mean NEES are taken (paper 004's tables
+        and JSON use the same; the other papers' tables report final values, and paper
+        001's its moving epochs). Here the run's last rms_window s."""
         return t >= t[-1] - self.rms_window - 1e-9
 
     def nees_dof(self) -> int:

@@ -109,10 +109,10 @@ def episode_metrics(run: FilterRun, b: int, experiment: Experiment,
         row.update({f"{prefix}_{a}_arcmin": float(v) for a, v in zip(AXES, values)})
     row.update({f"final_{a}_arcmin": float(v) for a, v in
                 zip(("pitch", "roll", "heading"), run.euler_error[b, -1] / arcmin)})
-    nees = run.nees[b, in_window & (t > 0)]
+    nees = run.nees[b, in_window]
     row.update({
         "heading_convergence_s": float(run.heading_convergence[b]),
-        "nees_mean": float(np.mean(nees)) if np.isfinite(nees).any() else None,
+        "nees_mean": float(np.nanmean(nees)) if np.isfinite(nees).any() else None,
         "nees_final": float(run.nees[b, -1]) if np.isfinite(run.nees[b, -1]) else None,
         "diverged": bool(run.diverged[b]), "diverged_reason": run.reason[b],
         "diverged_time_s": float(r.diverged_time[b] - r.t[0]) if r.diverged[b] else None,
