@@ -449,13 +449,17 @@ def write_figures(result, out: Path) -> list[Path]:
     curves = nees_curves(result)
     dof = exp.nees_dof()
     twins = identical_runs(result)
+    t = result.runs[0].result.t - result.runs[0].result.t[0] if result.runs else np.zeros(1)
+    in_window = exp.accuracy_window(t, result.episodes[0].fine_start if result.episodes
+                                    else 0.0)
+    window = float(t[-1] - t[in_window][0]) if in_window.any() else exp.rms_window
     paths = []
     for start in exp.starts:
         pick = lambda items: [x for x in items if x.start == start]  # noqa: E731
         if not pick(bands):
             continue
         paths.append(plot_error_bands(
-            pick(bands), exp.rms_window,
+            pick(bands), window,
             f"Attitude error from the {start} start over {len(result.seeds)} episodes",
             out / f"fine_error_{start}.png", twins))
         paths.append(plot_final_errors(result, start, out / f"final_error_{start}.png"))

@@ -157,8 +157,9 @@ def test_figures_draw_diverged_episodes_without_warnings(tmp_path):
     lost[:, 20:] = np.nan
     runs = [fake_run("good", error, np.ones_like(error), [False, False, True, False]),
             fake_run("lost", lost, np.ones_like(error), [True] * 4)]
-    result = SimpleNamespace(runs=runs, seeds=[0, 1, 2, 3], experiment=SimpleNamespace(
-        starts=("s",), rms_window=10.0, heading_threshold_arcmin=0.5, nees_dof=lambda: 3))
+    result = SimpleNamespace(runs=runs, seeds=[0, 1, 2, 3], episodes=[], experiment=SimpleNamespace(
+        starts=("s",), rms_window=10.0, heading_threshold_arcmin=0.5, nees_dof=lambda: 3,
+        accuracy_window=lambda t, fine_start: t >= t[-1] - 10.0))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         paths = write_figures(result, tmp_path)
