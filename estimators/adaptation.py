@@ -187,24 +187,56 @@ class SingleFadingFactor(InnovationFading):
 
     def __init__(self, rho: float = 0.95, beta: float = 1.0, floor: float = 1.0,
                  cap: float = np.inf, derivative_free: bool = False,
-                 warm_up: float = 0.0, in_motion_only: bool = False) -> None:
+                 warm_up: float = 0.0, in_motion_only: bool = False,
+                 outlier_probability: float | None = None, outlier_run: int = 2) -> None:
         super().__init__(rho, floor, cap)
         if not (np.isfinite(warm_up) and warm_up >= 0.0):
             raise ValueError(f"warm_up must be >= 0 s, got {warm_up}")
+        if outlier_probability is not None and not 0.5 < outlier_probability < 1.0:
+            raise ValueError(f"outlier_probability must be in (0.5, 1), got "
+                             f"{outlier_probability}")
+        if outlier_run < 1:
+            raise ValueError(f"outlier_run must be >= 1 epoch, got {outlier_run}")
         self.beta, self.derivative_free = beta, derivative_free
         self.warm_up, self.in_motion_only = warm_up, in_motion_only
+        self.outlier_probability, self.outlier_run = outlier_probability, outlier_run
+        self._flagged_run = np.zeros(0, int)
+
+    def reset(self, batch: int) -> None:
+        super().reset(batch)
+        self._flagged_run = np.zeros(batch, int)
+
+    def _outliers(self, ctx, valid: np.ndarray) -> np.ndarray:
+        """(B,) bool: this epoch's innovation fails the chi-square test at
+        outlier_probability (NIS over the valid components) and is at most the
+        outlier_run-th such epoch in a row: a sensor's outlier, not a change of state (a
+        longer run is the state's, and fades P as usual)."""
+        from scipy.stats import chi2
+        e = np.where(valid, ctx.innovation, 0.0)
+        S = np.where(valid[:, :, None] & valid[:, None, :], ctx.S,
+                     np.eye(e.shape[-1])[None])
+        nis = np.einsum("bi,bi->b", e, np.linalg.solve(S, e[..., None])[..., 0])
+        dof = np.maximum(valid.sum(-1), 1)
+        flagged = nis > chi2.ppf(self.outlier_probability, dof)
+        if self._flagged_run.shape != flagged.shape:
+            self._flagged_run = np.zeros(flagged.shape, int)
+        self._flagged_run = np.where(flagged, self._flagged_run + 1, 0)
+        return flagged & (self._flagged_run <= self.outlier_run)
 
     def adapt(self, ctx):
         """lambda = 1, and C_k not updated, before ``warm_up`` s (the filter settling: the
         first innovations, predicted by a much larger P, would make C_k fire lambda
         although each is inside its own prediction) and, with in_motion_only, while the
         carrier is still (states unobservable then would be inflated without bound;
-        ALGORITHMS 4.3 step 7)."""
+        ALGORITHMS 4.3 step 7); with outlier_probability, also not at an outlier
+        (``_outliers``: strong tracking would take it for a change of state)."""
         active = np.full(ctx.innovation.shape[0], ctx.t >= self.warm_up - 1e-9)
         if self.in_motion_only and ctx.motion is not None:
             active &= np.asarray(ctx.motion, bool)
         valid = (np.ones(ctx.innovation.shape, bool) if ctx.valid is None
                  else np.asarray(ctx.valid, bool))
+        if self.outlier_probability is not None:
+            active &= ~self._outliers(ctx, valid)
         C = self.innovation_covariance(ctx.innovation, valid & active[:, None])
         HQH = _sandwich(ctx.H, ctx.Q)
         N = C - HQH - self.beta * ctx.R

@@ -277,6 +277,11 @@ def _strong_tracking(**options):
                               in_motion_only=True, **options)
 
 
+def _strong_tracking_gated(**options):
+    return SingleFadingFactor(derivative_free=True, warm_up=SGKF_WARM_UP,
+                              in_motion_only=True, outlier_probability=0.999, **options)
+
+
 def _local_level(policy):
     return lambda **options: policy(axes="local-level", **options)
 
@@ -321,6 +326,10 @@ FILTERS: dict[str, FilterEntry] = {
                         "reduced-dimension GH with the strong-tracking fading factor "
                         "(000's SGKF; rho 0.95, beta 1; fading from 60 s on, not while "
                         "still: ALGORITHMS 4.3 step 7)", True),
+    "sgkf-gated": FilterEntry(lambda: ReducedGaussHermiteRule(7), _strong_tracking_gated,
+                              "sgkf whose fading factor skips a sensor's outlier (an "
+                              "innovation beyond chi-square 0.999, at most 2 epochs in a "
+                              "row; beyond paper 000)", True),
     "stukf": FilterEntry(lambda: UnscentedRule(spread=STUKF_SPREAD), NoAdaptation,
                          "state-transformation UKF on the rotation-vector model (004; n + "
                          "kappa = 1.5: the points at 1.22 sigma, STUKF_SPREAD)", model="st"),

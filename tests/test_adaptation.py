@@ -186,3 +186,25 @@ def test_measurement_fading_factors_oracles():
     assert adj.factors[0, 0] == pytest.approx((9.0 - 2.1) / 0.5)
     assert adj.P_pred is None
     np.testing.assert_allclose(adj.R, adj.factors[0, 0] * R)
+
+
+def test_gated_strong_tracking_skips_an_outlier_and_fades_at_a_change_of_state():
+    """outlier_probability 0.999 (1 dof: NIS > 10.83): a 10-sigma innovation (NIS 100)
+    once is a sensor's outlier: lambda = 1 and C_k untouched, so the next quiet epoch is
+    unfaded too (the ungated factor fires at it and carries it on); three in a row are a
+    change of state, and the third fades (outlier_run 2)."""
+    S = H @ (PhiPPhi + Q) @ np.swapaxes(H, -1, -2) + R        # 2.6
+    quiet, big = np.array([[0.1]]), np.array([[10.0 * np.sqrt(S[0, 0, 0])]])
+
+    def run(policy, innovations):
+        policy.reset(1)
+        return [adapt(policy, PhiPPhi, Q, H, R, e_k)[1][0, 0] for e_k in innovations]
+
+    plain = run(SingleFadingFactor(), [quiet, big, quiet])
+    gated = run(SingleFadingFactor(outlier_probability=0.999), [quiet, big, quiet])
+    assert plain[1] > 10.0 and plain[2] > 1.0      # the outlier fades, and C_k carries it on
+    assert gated == [1.0, 1.0, 1.0]
+    change = run(SingleFadingFactor(outlier_probability=0.999), [quiet, big, big, big])
+    assert change[:3] == [1.0, 1.0, 1.0] and change[3] > 10.0
+    with pytest.raises(ValueError, match="outlier_probability must be in"):
+        SingleFadingFactor(outlier_probability=1.0)

@@ -137,7 +137,8 @@ class Paper000Experiment(Experiment):
               "strong tracking takes it for a change of state: lambda ~1400 at each burst, "
               "the heading sigma 26' -> 460', the heading lost (-190' +- 580' at the stop in "
               "every episode) where the GH filter without it ends at 0.4'; the paper's "
-              "abrupt changes are the state's, not the sensor's",
+              "abrupt changes are the state's, not the sensor's (sgkf-gated, which skips "
+              "outliers, ends at 0.41': docs/paper000.md)",
               settings={"starts": ("coarse",), "disturbance": "slip"},
               filters=("sgkf", "rdghkf")),
     )
