@@ -278,8 +278,7 @@ def _strong_tracking(**options):
 
 
 def _strong_tracking_gated(**options):
-    return SingleFadingFactor(derivative_free=True, warm_up=SGKF_WARM_UP,
-                              in_motion_only=True, outlier_probability=0.999, **options)
+    return _strong_tracking(outlier_probability=0.999, **options)
 
 
 def _local_level(policy):

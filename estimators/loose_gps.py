@@ -179,10 +179,15 @@ class LooselyCoupledModel(FilterModel):
         return C_b_n, C_ne, C_ne @ C_b_n, geodetic_to_ecef(s.lat, s.lon, s.h), \
             np.einsum("bij,bj->bi", C_ne, s.v_n)
 
+    def _w_eb(self, C_b_e: np.ndarray) -> np.ndarray:
+        """The body's rate relative to the earth, w_eb^b (B, 3) rad/s: the INS's inertial
+        rate less the earth's rate resolved in b."""
+        return self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E)
+
     def _lever(self, C_b_e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Antenna offset C_b^e l and its velocity C_b^e (w_eb^b x l), e frame."""
         l_b = self.inputs.lever_arm_b
-        w_eb = self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E)
+        w_eb = self._w_eb(C_b_e)
         return (np.einsum("bij,bj->bi", C_b_e, l_b),
                 np.einsum("bij,bj->bi", C_b_e, np.cross(w_eb, l_b)))
 
@@ -271,7 +276,7 @@ class LooselyCoupledModel(FilterModel):
         speed_gps = np.hypot(inp.gps_v_n[:, k + 1, 0], inp.gps_v_n[:, k + 1, 1])
         v_track = inp.gps_v_n[:, k + 1]
         if any(tu.heading_offset_b):
-            w_eb = self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E)
+            w_eb = self._w_eb(C_b_e)
             v_track = v_track + np.einsum("bji,bj->bi", C_ne_g, np.einsum(
                 "bij,bj->bi", C_b_e, np.cross(w_eb, np.asarray(tu.heading_offset_b))))
         psi_g = np.arctan2(v_track[:, 0], v_track[:, 1])
@@ -291,7 +296,7 @@ class LooselyCoupledModel(FilterModel):
         R[:, 3:6, 3:6] = np.eye(3) * tu.gps_velocity_sigma ** 2
         heading_var = inp.gps_heading_sigma[:, k + 1] ** 2
         if tu.heading_sideslip_arm:
-            w_z = (self._omega_ib_b - np.einsum("bji,j->bi", C_b_e, OMEGA_IE_E))[:, 2]
+            w_z = self._w_eb(C_b_e)[:, 2]
             slip = tu.heading_sideslip_arm * np.abs(w_z) / np.maximum(
                 speed_gps, max(tu.heading_min_speed, 0.1))
             heading_var = heading_var + slip ** 2

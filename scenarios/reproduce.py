@@ -19,6 +19,7 @@ from typing import Callable
 from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.campaign.claims import Claim
 
+
 @dataclass
 class Verdict:
     paper: str
@@ -26,6 +27,15 @@ class Verdict:
     measured: dict[str, float]
     reproduced: bool
 
+
+def campaign_plan(paper: str, episodes: int | None = None, seed: int | None = None
+                  ) -> tuple[int, int]:
+    """(episodes, seed) of a paper's claim campaigns: the given ones, else its own
+    (``Experiment.reproduce``; 20 episodes, seed 0 where it declares none)."""
+    from aligngym.scenarios.experiments import experiment_class
+    plan = experiment_class(paper).reproduce or {}
+    return (episodes or plan.get("episodes", 20),
+            plan.get("seed", 0) if seed is None else seed)
 
 
 def measure(claim: Claim, result, metrics: dict[str, float]) -> dict[str, float]:
@@ -52,9 +62,7 @@ def run_claims(paper: str, episodes: int | None = None, seed: int | None = None,
     from aligngym.scenarios.report import write_outputs
 
     cls = experiment_class(paper)
-    plan = cls.reproduce or {}
-    episodes = episodes or plan.get("episodes", 20)
-    seed = plan.get("seed", 0) if seed is None else seed
+    episodes, seed = campaign_plan(paper, episodes, seed)
     groups: dict[tuple, list[Claim]] = {}
     for claim in cls.claims:
         groups.setdefault(claim.campaign_key(), []).append(claim)
@@ -140,14 +148,11 @@ def reproduce(papers: list[str], episodes: int | None = None, seed: int | None =
     """Every named paper's claims; with out_dir also each campaign's outputs, a page per
     paper (DIR/PAPER/claims.md, with the figures) and DIR/claims.md (every claim, one line
     each). Returns the verdicts and the printed table."""
-    from aligngym.scenarios.experiments import experiment_class
-
     start = time.perf_counter()
     verdicts: list[Verdict] = []
     counts = {}
     for paper in papers:
-        cls = experiment_class(paper)
-        counts[paper] = episodes or (cls.reproduce or {}).get("episodes", 20)
+        counts[paper] = campaign_plan(paper, episodes)[0]
         verdicts += run_claims(paper, episodes, seed, out_dir, workers, log)
     text = format_verdicts(verdicts)
     if out_dir is not None:
