@@ -12,6 +12,9 @@ import gymnasium
 from aligngym.scenarios.registry import GENERIC_ENV_ID, SCENARIO_PAPER, env_id
 
 ENTRY_POINT = "aligngym.scenarios.env:AlignmentEnv"
+VECTOR_ENTRY_POINT = "aligngym.scenarios.vector_env:AlignmentVectorEnv"
+"""``gym.make_vec``'s default for these ids: N episodes through batched filters in one
+process (``vectorization_mode="sync"`` or ``"async"`` make N single envs instead)."""
 
 ENV_SCENARIOS = sorted(SCENARIO_PAPER)
 """Shipped scenarios with an env id (each names its experiment in its file)."""
@@ -26,6 +29,8 @@ def register_envs() -> None:
     short, before their metrics and video."""
     for name, id_ in zip(ENV_SCENARIOS, ENV_IDS):
         if id_ not in gymnasium.registry:
-            gymnasium.register(id=id_, entry_point=ENTRY_POINT, kwargs={"scenario": name})
+            gymnasium.register(id=id_, entry_point=ENTRY_POINT, kwargs={"scenario": name},
+                               vector_entry_point=VECTOR_ENTRY_POINT)
     if GENERIC_ENV_ID not in gymnasium.registry:
-        gymnasium.register(id=GENERIC_ENV_ID, entry_point=ENTRY_POINT)
+        gymnasium.register(id=GENERIC_ENV_ID, entry_point=ENTRY_POINT,
+                           vector_entry_point=VECTOR_ENTRY_POINT)

@@ -161,16 +161,23 @@ class InnovationFading(AdaptationPolicy):
         self._started = self._started | complete
         return self._C
 
-    def retune(self, floor: float) -> None:
-        """An agent's action: a new lower bound of the factors (> 0; the cap is raised to
-        it if needed)."""
-        if not (np.isfinite(floor) and floor > 0.0):
+    def retune(self, floor: float | np.ndarray) -> None:
+        """An agent's action: a new lower bound of the factors (> 0), one number or one
+        per episode (B,); the cap is raised to it if needed."""
+        floor_ = np.asarray(floor, float)
+        if not (floor_.ndim <= 1 and np.all(np.isfinite(floor_)) and np.all(floor_ > 0.0)):
             raise ValueError(f"fading-factor floor must be > 0, got {floor}")
-        self.floor, self.cap = floor, max(self.cap, floor)
+        self.floor = float(floor_) if floor_.ndim == 0 else floor_
+        self.cap = np.maximum(self.cap, self.floor)
 
     def _bound(self, factors: np.ndarray) -> np.ndarray:
-        factors = np.where(np.isfinite(factors), factors, self.floor)
-        return np.clip(factors, self.floor, self.cap)
+        """factors (B,) or (B, m) within [floor, cap] (each a number or one per episode)."""
+        def batched(bound):
+            bound = np.asarray(bound)
+            return bound.reshape(bound.shape + (1,) * (factors.ndim - 1)) if bound.ndim else bound
+        floor, cap = batched(self.floor), batched(self.cap)
+        factors = np.where(np.isfinite(factors), factors, floor)
+        return np.clip(factors, floor, cap)
 
 
 class SingleFadingFactor(InnovationFading):

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from aligngym.estimators.filters import GaussianFilter
-from aligngym.estimators.model import FilterModel
+from aligngym.estimators.model import FilterModel, Scale
 
 
 @dataclass
@@ -79,9 +79,10 @@ class AlignmentRun:
         self.P[:, k] = filt.P
         self.sigma_n[:, k] = self.model.attitude_sigma(k, filt.P)
 
-    def step(self, q_scale: tuple[float, float] = (1.0, 1.0), r_scale: float = 1.0) -> None:
+    def step(self, q_scale: tuple[Scale, Scale] = (1.0, 1.0), r_scale: Scale = 1.0) -> None:
         """One epoch. q_scale multiplies the (gyro, accelerometer) white-noise variances,
-        r_scale the measurement-noise variance (1 = as tuned)."""
+        r_scale the measurement-noise variance (1 = as tuned); each a number or one per
+        episode, (B,)."""
         if self.done:
             raise RuntimeError("the fine alignment is finished")
         start = time.perf_counter()

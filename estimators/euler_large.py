@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                              stack_episodes)
+                                       per_member, stack_episodes)
 from aligngym.estimators.strapdown import compensate
 from aligngym.models.attitude import (dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
                              quat_rotate, quat_to_dcm, rotvec_to_quat)
@@ -622,8 +622,9 @@ class EulerLargeMisalignmentModel(FilterModel):
         G = np.zeros((self.batch, N_STATES, 5))
         G[:, DV, 0:2] = (level_rotation(alpha) @ C_b_p)[:, :2, :2]
         G[:, ALPHA, 2:5] = -C_omega_inv(alpha) @ C_b_p
-        q = np.array([self.tuning.accel_psd * q_scale[1]] * 2
-                     + [self.tuning.gyro_psd * q_scale[0]] * 3)
+        q_a = self.tuning.accel_psd * per_member(q_scale[1], self.batch)[:, 0]
+        q_g = self.tuning.gyro_psd * per_member(q_scale[0], self.batch)[:, 0]
+        q = np.concatenate([q_a, q_a, q_g, q_g, q_g], -1)[:, None, :]       # (B, 1, 5)
         Q = (G * q) @ np.swapaxes(G, -1, -2) * T
         return Transition(noise=0.5 * (Q + np.swapaxes(Q, -1, -2)), fn=fn,
                           jacobian=jacobian, angles=LAYOUT.angles)
@@ -636,7 +637,7 @@ class EulerLargeMisalignmentModel(FilterModel):
                                  "epochs must be taken in order")
             self._v = self._v + self.integrals.delta_v(self.C0, k)
             self._v_epoch = k
-        return Observation(noise=r_scale * self._R, matrix=self._Hb,
+        return Observation(noise=per_member(r_scale, self.batch) * self._R, matrix=self._Hb,
                            z=self._v[:, :2].copy(), t=float(self.t[k + 1]))
 
     def feedback(self, x, P, live):

@@ -22,7 +22,7 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult, run_alignment
 from aligngym.estimators.filters import GaussianFilter
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                              stack_episodes)
+                                       per_member, stack_episodes)
 from aligngym.estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
 from aligngym.models.attitude import rotvec_to_dcm, skew
@@ -150,8 +150,8 @@ class InertialFineModel(FilterModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         B, T, inputs = self.batch, self.tuning.step, self.inputs
-        q_g = self.tuning.gyro_noise_density ** 2 * q_scale[0]
-        q_a = self.tuning.accel_noise_density ** 2 * q_scale[1]
+        q_g = self.tuning.gyro_noise_density ** 2 * per_member(q_scale[0], B)
+        q_a = self.tuning.accel_noise_density ** 2 * per_member(q_scale[1], B)
         Psi_i = self.C_s0_i @ inputs.Psi[:, k]
         Psi2_i = self.C_s0_i @ inputs.Psi2[:, k]
         G = skew(self._g_mid[:, k])
@@ -177,7 +177,8 @@ class InertialFineModel(FilterModel):
                                                   self.inputs.dW[:, k])
             self._Z_epoch = k
         z = self._Z_acc - (self._V_grav[:, k + 1] - self._V_grav[:, 0])
-        R = r_scale * self._C_n_i[:, k + 1] @ self._R_n @ self._C_i_n[:, k + 1]
+        r = per_member(r_scale, self.batch)
+        R = r * self._C_n_i[:, k + 1] @ self._R_n @ self._C_i_n[:, k + 1]
         return Observation(noise=R, matrix=self._H, z=z, t=float(self.inputs.t[k + 1]),
                            axes=self._C_i_n[:, k + 1])
 

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.model import FilterModel, Observation, StateLayout, Transition, wrap_angle
+from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
+                                       per_member, wrap_angle)
 from aligngym.estimators.strapdown import AidedInsInputs, body_rate_at
 from aligngym.models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
 from aligngym.models.earth import (C_n_e, OMEGA_IE, earth_rate_n, ecef_to_geodetic,
@@ -256,10 +257,10 @@ class LooselyCoupledModel(FilterModel):
         F[:, PHI, GYRO] = -C_b_e
         FT = F * T
         Phi = np.eye(15) + FT + 0.5 * FT @ FT
-        q = np.zeros(15)
-        q[PHI] = self.tuning.gyro_noise_density ** 2 * q_scale[0]
-        q[VELOCITY] = self.tuning.accel_noise_density ** 2 * q_scale[1]
-        Qc = np.diag(q)   # C_b^e q C_e^b = q I for isotropic white noise
+        q = np.zeros((B, 15))
+        q[:, PHI] = self.tuning.gyro_noise_density ** 2 * per_member(q_scale[0], B)[:, 0]
+        q[:, VELOCITY] = self.tuning.accel_noise_density ** 2 * per_member(q_scale[1], B)[:, 0]
+        Qc = q[:, :, None] * np.eye(15)   # C_b^e q C_e^b = q I for isotropic white noise
         Q = 0.5 * T * (Phi @ Qc @ np.swapaxes(Phi, -1, -2) + Qc)
         return Transition(noise=Q, matrix=Phi)
 
@@ -307,7 +308,7 @@ class LooselyCoupledModel(FilterModel):
         # where H's heading row has tan(pitch) terms.
         directions[:, HEADING, PHI] = C_en[:, 2]
         moving = np.hypot(self.ins.state.v_n[:, 0], self.ins.state.v_n[:, 1]) >= tu.motion_speed
-        return Observation(noise=R * r_scale, matrix=H, z=z, t=float(self.t[k + 1]),
+        return Observation(noise=R * per_member(r_scale, B), matrix=H, z=z, t=float(self.t[k + 1]),
                            angles=(HEADING,), motion=moving, directions=directions)
 
     def feedback(self, x, P, live):

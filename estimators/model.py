@@ -147,6 +147,16 @@ class Observation(GaussianMap):
         return np.isfinite(self.z)
 
 
+Scale = float | Array
+"""A noise multiplier: one number for every episode, or one per episode ((B,) or (B, 1, 1))."""
+
+
+def per_member(scale: Scale, batch: int) -> Array:
+    """A noise multiplier as (B, 1, 1), to multiply a (B, n, n) covariance; ``[:, 0]``
+    gives (B, 1) for a (B, n) diagonal."""
+    return np.broadcast_to(np.reshape(np.asarray(scale, float), (-1, 1, 1)), (batch, 1, 1))
+
+
 class FilterModel:
     """A fine-alignment model run by ``estimators.alignment.AlignmentRun``: its state
     layout, its initial state and covariance, one transition and observation per epoch,
@@ -166,13 +176,15 @@ class FilterModel:
         """x0 (B, n) and P0 (B, n, n)."""
         raise NotImplementedError
 
-    def transition(self, k: int, q_scale: tuple[float, float] = (1.0, 1.0)) -> Transition:
+    def transition(self, k: int, q_scale: tuple[Scale, Scale] = (1.0, 1.0)) -> Transition:
         """Process from boundary k to k+1; q_scale multiplies the (gyro, accelerometer)
-        white-noise variances (1: as tuned)."""
+        white-noise variances (1: as tuned), each a number or one per episode
+        (``per_member``)."""
         raise NotImplementedError
 
-    def observation(self, k: int, r_scale: float = 1.0) -> Observation:
-        """Measurement at boundary k+1; r_scale multiplies R (1: as tuned)."""
+    def observation(self, k: int, r_scale: Scale = 1.0) -> Observation:
+        """Measurement at boundary k+1; r_scale multiplies R (1: as tuned), a number or
+        one per episode (``per_member``)."""
         raise NotImplementedError
 
     def feedback(self, x: Array, P: Array, live: Array) -> tuple[Array, Array]:

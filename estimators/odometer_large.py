@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.estimators.euler_large import C_p_n, reset_jacobian
-from aligngym.estimators.model import FilterModel, Observation, StateLayout, Transition
+from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
+                                       per_member)
 from aligngym.estimators.strapdown import AidedInsInputs
 from aligngym.models.attitude import dcm_to_quat, quat_to_dcm, skew
 from aligngym.models.earth import (OMEGA_IE, earth_rate_n, metres_per_geodetic, radii,
@@ -267,10 +268,10 @@ class OdometerLargeHeadingModel(FilterModel):
         self._quantities = quantities
         self._C_b_n[:, k + 1] = C[:, -1]
         n = self.n
-        q = np.zeros(n)
-        q[PHI] = self.tuning.gyro_noise_density ** 2 * q_scale[0]
-        q[DV] = self.tuning.accel_noise_density ** 2 * q_scale[1]
-        Q = np.broadcast_to(np.diag(q) * T, (self.batch, n, n))
+        q = np.zeros((self.batch, n))
+        q[:, PHI] = self.tuning.gyro_noise_density ** 2 * per_member(q_scale[0], self.batch)[:, 0]
+        q[:, DV] = self.tuning.accel_noise_density ** 2 * per_member(q_scale[1], self.batch)[:, 0]
+        Q = q[:, :, None] * np.eye(n) * T
 
         def conditional(zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             A, b = quantities.A_and_b(zeta[..., 0], n)
@@ -283,7 +284,7 @@ class OdometerLargeHeadingModel(FilterModel):
             F, g = conditional(x[..., 2:3])
             return np.einsum("bpij,bpj->bpi", F, x) + g
 
-        return Transition(noise=Q.copy(), fn=fn, conditional=conditional, nonlinear=HEADING,
+        return Transition(noise=Q, fn=fn, conditional=conditional, nonlinear=HEADING,
                           angles=HEADING)
 
     def observation(self, k, r_scale=1.0):
@@ -309,10 +310,9 @@ class OdometerLargeHeadingModel(FilterModel):
             H, h = conditional(x[..., 2:3])
             return np.einsum("bpij,bpj->bpi", H, x) + h
 
-        R = np.broadcast_to(np.eye(3) * self.tuning.measurement_sigma ** 2 * r_scale,
-                            (self.batch, 3, 3))
+        R = np.eye(3) * self.tuning.measurement_sigma ** 2 * per_member(r_scale, self.batch)
         speed = np.linalg.norm(odometer, axis=-1) / T
-        return Observation(noise=R.copy(), fn=fn, conditional=conditional,
+        return Observation(noise=R, fn=fn, conditional=conditional,
                            nonlinear=HEADING, z=z, t=float(self.t[k + 1]),
                            motion=speed > 0.5)
 

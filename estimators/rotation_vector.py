@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.model import FilterModel, Observation, StateLayout, Transition
+from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
+                                       per_member)
 from aligngym.estimators.loose_gps import GpsInsInputs
 from aligngym.estimators.strapdown import body_rate_at
 from aligngym.models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
@@ -347,12 +348,12 @@ class RotationVectorGnssModel(FilterModel):
         qm = self._quantities(out, 0.5 * (f[:, mid - 1] + f[:, mid]), mid)
         q1 = self._quantities(out, f[:, -1], S)
         tu = self.tuning
-        qd = np.zeros(N_STATES)
-        qd[PHI] = tu.gyro_noise_density ** 2 * q_scale[0]
-        qd[DV] = tu.accel_noise_density ** 2 * q_scale[1]
-        qd[EPS] = tu.gyro_bias_walk ** 2
-        qd[NABLA] = tu.accel_bias_walk ** 2
-        Q = np.broadcast_to(np.diag(qd) * T, (self.batch, N_STATES, N_STATES)).copy()
+        qd = np.zeros((self.batch, N_STATES))
+        qd[:, PHI] = tu.gyro_noise_density ** 2 * per_member(q_scale[0], self.batch)[:, 0]
+        qd[:, DV] = tu.accel_noise_density ** 2 * per_member(q_scale[1], self.batch)[:, 0]
+        qd[:, EPS] = tu.gyro_bias_walk ** 2
+        qd[:, NABLA] = tu.accel_bias_walk ** 2
+        Q = qd[:, :, None] * np.eye(N_STATES) * T
         if self.variant == "st-linear":
             quantities = InsQuantities(C_b_p=qm.C_b_p[:, 0], f_b=qm.f_b[:, 0], v=qm.v[:, 0],
                                        lat=qm.lat[:, 0], lon=qm.lon[:, 0], h=qm.h[:, 0])
@@ -393,7 +394,7 @@ class RotationVectorGnssModel(FilterModel):
         R[:, :3, :3] = np.eye(3) * tu.gnss_velocity_sigma ** 2
         R[:, 3:, 3:] = np.diag([tu.gnss_position_sigma_h ** 2] * 2
                                + [tu.gnss_position_sigma_v ** 2])
-        R = R * r_scale
+        R = R * per_member(r_scale, self.batch)
         v_ins = s.v_n
         variant = self.variant
         # E, N, U metres of dp = (dL, dlambda, dh): rows [0, Rn cos L, 0], [R_M + h, 0, 0].

@@ -226,6 +226,34 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
                      "figures) and each campaign's outputs under DIR/PAPER/")
     rpr.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
                      help="parallel processes (default: all cores)")
+    bank_help = ("simulate a split's episodes of a scenario once into an episode bank, which "
+                 "the env's reset loads (gym.make(..., bank=DIR, split=SPLIT))")
+    bnk = sub.add_parser("bank", help=bank_help, description=bank_help)
+    bnk.add_argument("scenario", metavar="SCENARIO", help="scenario name (" + ", ".join(
+        scenario_names()) + ") or a .toml file that names an experiment")
+    bnk.add_argument("--out", required=True, metavar="DIR", help="the bank directory")
+    bnk.add_argument("--split", choices=["train", "validation", "test"], default="train",
+                     help="the seed split (train [0, 1.6e9), validation [1.6e9, 1.8e9), "
+                     "test [1.8e9, 2^31 - 1); default: train)")
+    bnk.add_argument("--episodes", type=_positive_int("--episodes"), default=100,
+                     metavar="N", help="episodes: the split's seeds FIRST .. FIRST + N - 1 "
+                     "(default: 100)")
+    bnk.add_argument("--first", type=_seed, default=0, metavar="K",
+                     help="the first episode of the split (default: 0)")
+    bnk.add_argument("--episode-length", type=_float_option("--episode-length"),
+                     default=600.0, metavar="S", help="the env's episode_length, s "
+                     "(default: 600)")
+    bnk.add_argument("--epoch-length", type=_float_option("--epoch-length"), default=1.0,
+                     metavar="S", help="the env's epoch_length, s (default: 1)")
+    bnk.add_argument("--set", action="append", metavar="NAME=VALUE",
+                     help="a setting of the scenario's experiment, as the env's settings "
+                     "(e.g. coarse_duration=60); repeatable")
+    bnk.add_argument("--workers", type=_positive_int("--workers"), metavar="K",
+                     help="parallel processes, or CPUs of a local Ray instance "
+                     "(default: all cores)")
+    bnk.add_argument("--executor", choices=["local", "ray"], default="local",
+                     help="local processes or Ray tasks (default: local)")
+    bnk.add_argument("--address", metavar="ADDR", help="with --executor ray: the cluster")
     reg = sub.add_parser("regress", help="run each paper's small fixed-seed campaign against "
                          "its stored baseline; exit 1 when a metric moved beyond tolerance")
     reg.add_argument("--papers", default=None,
@@ -486,6 +514,30 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bank(args: argparse.Namespace) -> int:
+    import os
+
+    from aligngym.scenarios.bank import EpisodeBank, split_seeds
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.experiments import experiment_class, experiment_for
+
+    config = load_scenario(args.scenario)
+    args.paper = config.experiment or "the scenario's experiment"
+    settings = _settings_of(experiment_class(config.experiment), args) if (
+        config.experiment and args.set) else {}
+    seeds = split_seeds(args.split, args.episodes, args.first)
+    experiment = experiment_for(args.scenario, fine_duration=args.episode_length,
+                                filter_step=args.epoch_length, **settings)
+    bank = EpisodeBank(args.out, experiment)
+    start = time.perf_counter()
+    simulated = bank.build(seeds, workers=args.workers or os.cpu_count() or 1,
+                           executor=args.executor, address=args.address)
+    print(f"{bank.directory}: {len(seeds)} {args.split} episodes (seeds {seeds[0]} .. "
+          f"{seeds[-1]}), {simulated} simulated, {len(seeds) - simulated} already there; "
+          f"{time.perf_counter() - start:.1f} s")
+    return 0
+
+
 def _cmd_regress(args: argparse.Namespace) -> int:
     from aligngym.scenarios.regress import BASELINE_DIR, campaigns, regress
 
@@ -534,6 +586,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_regress(args)
         if args.command == "reproduce":
             return _cmd_reproduce(args)
+        if args.command == "bank":
+            return _cmd_bank(args)
         if args.command == "report":
             return _cmd_report(args)
         if args.command == "render":

@@ -33,6 +33,7 @@ from aligngym.estimators.filters import UnknownFilter, filter_entry, make_filter
 from aligngym.estimators.alignment import AlignmentRun
 from aligngym.estimators.metrics import misalignment
 from aligngym.models.units import arcmin
+from aligngym.scenarios.bank import SPLITS, EpisodeBank, check_seed_in_split, check_split
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios import campaign
 from aligngym.scenarios.campaign import PreparedEpisode
@@ -60,39 +61,34 @@ REWARD_SCALE = np.array([1.0, 1.0, 10.0]) * arcmin
 REWARD_CAP = 100.0
 
 
-class AlignmentEnv(gym.Env):
-    """Alignment of the scenario's IMU by one estimator (see the module docstring).
-
-    scenario: scenario name; estimator: filter name (``estimators.filters.FILTERS``);
-    episode_length: fine-alignment duration, s; epoch_length: filter epoch, s;
-    render_mode: None or "rgb_array"; video_path: with "rgb_array", write each
-    episode's frames to this MP4 file; mistuning: variance multipliers applied to the
-    filter's tuning before the agent acts ({"gyro_noise", "accel_noise", "measurement"}),
-    to build a deliberately mistuned filter; cache_episodes: number of simulated episodes
-    kept in memory by episode seed (repeated resets with the same seed skip MuJoCo; with
-    more than 0, episodes are also shared with this process's other envs of the same
-    experiment, ``SHARED_EPISODES`` of them; 0: no caching).
-    """
+class EnvCore:
+    """What the single and the vector env share: the experiment, the spaces, the
+    mistuning, the episode cache and bank, the seed split and the reset options."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, scenario: str = "ship-sway-rotary", estimator: str = "kf",
-                 episode_length: float = 600.0, epoch_length: float = 1.0,
-                 render_mode: str | None = None, video_path: str | None = None,
-                 mistuning: dict[str, float] | None = None, cache_episodes: int = 8,
-                 render_size: tuple[int, int] = (240, 320)) -> None:
+    def _configure(self, scenario: str, estimator: str, episode_length: float,
+                   epoch_length: float, mistuning: dict[str, float] | None,
+                   cache_episodes: int, settings: dict | None, bank: str | Path | None,
+                   split: str | None, split_episodes: int) -> None:
         try:
             filter_entry(estimator)
         except UnknownFilter as exc:
             raise ConfigError(str(exc)) from None
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError(f"render_mode = {render_mode!r}; valid: None, 'rgb_array'")
         if not (episode_length > 0 and epoch_length > 0 and episode_length >= epoch_length):
             raise ConfigError("need episode_length >= epoch_length > 0 s, got "
                               f"{episode_length}, {epoch_length}")
-        self.estimator, self.render_mode, self.video_path = estimator, render_mode, video_path
-        self.experiment = experiment_for(scenario, fine_duration=episode_length,
-                                         filter_step=epoch_length)
+        settings = dict(settings or {})
+        clash = sorted({"fine_duration", "filter_step", "scenario"} & set(settings))
+        if clash:
+            raise ConfigError(f"settings key {clash[0]!r} is set by the env's own arguments "
+                              "(episode_length, epoch_length, scenario)")
+        self.estimator = estimator
+        try:
+            self.experiment = experiment_for(scenario, fine_duration=episode_length,
+                                             filter_step=epoch_length, **settings)
+        except TypeError as exc:          # a settings key the experiment does not have
+            raise ConfigError(f"settings: {exc}") from None
         self.config = self.experiment.scenario_config()
         self.experiment.check_filters([estimator])
         factors = {"gyro_noise": 1.0, "accel_noise": 1.0, "measurement": 1.0,
@@ -106,21 +102,26 @@ class AlignmentEnv(gym.Env):
             raise ConfigError(f"mistuning {bad[0]!r} = {factors[bad[0]]} must be > 0")
         self._mistuning = factors
         self._fading = filter_entry(estimator).fading
-        self.action_space = spaces.Box(-1.0, 1.0, (4 if self._fading else 3,), np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, (4 if self._fading else 3,),
+                                              np.float32)
         low = np.concatenate([np.full(3, -10.0), np.full(9, -20.0), np.full(3, -2.0), [0.0]])
         high = np.concatenate([np.full(3, 10.0), np.full(9, 5.0), np.full(3, 3.0), [1.0]])
-        self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32),
-                                            dtype=np.float32)
+        self.single_observation_space = spaces.Box(low.astype(np.float32),
+                                                   high.astype(np.float32), dtype=np.float32)
         self._cache: OrderedDict[int, PreparedEpisode] = OrderedDict()
         self._cache_size = cache_episodes
-        self._render_size = render_size
-        self._scene = None
-        self._run: AlignmentRun | None = None
-        self._over = False
-        self._frames: list[np.ndarray] = []
+        self._bank = None if bank is None else EpisodeBank(bank, self.experiment)
+        if split is not None:
+            lo, hi = check_split(split)
+            if not (isinstance(split_episodes, (int, np.integer)) and 0 < split_episodes
+                    <= hi - lo):
+                raise ConfigError(f"split_episodes = {split_episodes!r}; valid: 1 to {hi - lo}")
+        self.split, self.split_episodes = split, int(split_episodes)
 
-    # --- episode ------------------------------------------------------------------------
+    # --- episodes -----------------------------------------------------------------------
     def _prepare(self, episode_seed: int) -> PreparedEpisode:
+        """The prepared episode of this seed: from this env's cache, this process's other
+        envs, the bank, or a simulation."""
         if episode_seed in self._cache:
             self._cache.move_to_end(episode_seed)
             return self._cache[episode_seed]
@@ -129,7 +130,10 @@ class AlignmentEnv(gym.Env):
             _SHARED.move_to_end(key)
             episode = _SHARED[key]
         else:
-            episode = self.experiment.prepare_episode(episode_seed, config=self.config)
+            if self._bank is not None:
+                episode = self._bank.get(episode_seed, config=self.config)
+            else:
+                episode = self.experiment.prepare_episode(episode_seed, config=self.config)
             if self._cache_size > 0:
                 _SHARED[key] = episode
                 while len(_SHARED) > SHARED_EPISODES:
@@ -140,11 +144,8 @@ class AlignmentEnv(gym.Env):
                 self._cache.popitem(last=False)
         return episode
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Options: "episode_seed" (int, else drawn from np_random), "start_error":
-        "default" (the experiment's: the episode's own coarse alignment for 003, the
-        large azimuth error for 002; "coarse" is the same), "random" (drawn from the
-        filter's initial attitude sigma) or phi E, N, U in rad (3,)."""
+    @staticmethod
+    def _check_options(options) -> dict:
         options = {} if options is None else options
         if not isinstance(options, dict):
             raise ConfigError(f"reset options must be a dict, got {type(options).__name__}")
@@ -156,39 +157,184 @@ class AlignmentEnv(gym.Env):
         if chosen is not None and (isinstance(chosen, bool) or not isinstance(
                 chosen, (int, np.integer)) or chosen < 0):
             raise ConfigError(f"episode_seed must be an integer >= 0, got {chosen!r}")
-        super().reset(seed=seed)
-        episode_seed = int(chosen if chosen is not None
-                           else self.np_random.integers(0, 2 ** 31 - 1))
-        self._episode = self._prepare(episode_seed)
+        return options
+
+    def _begin(self, options: dict, rng: np.random.Generator
+               ) -> tuple[int, PreparedEpisode, np.ndarray]:
+        """The episode seed (the option's, else drawn from rng: within the split's first
+        split_episodes with a split), the prepared episode and the start error (3,) rad."""
+        chosen = options.get("episode_seed")
+        if chosen is not None:
+            episode_seed = int(chosen)
+            if self.split is not None:
+                check_seed_in_split(episode_seed, self.split)
+        elif self.split is None:
+            episode_seed = int(rng.integers(0, 2 ** 31 - 1))
+        else:
+            episode_seed = SPLITS[self.split][0] + int(rng.integers(0, self.split_episodes))
+        episode = self._prepare(episode_seed)
         start = options.get("start_error", "default")
         if isinstance(start, str):
             if start in ("default", "coarse"):
-                start = self.experiment.episode_start(self._episode)
+                start = self.experiment.episode_start(episode)
             elif start == "random":
-                start = self.np_random.standard_normal(3) * self.experiment.attitude_sigma()
+                start = rng.standard_normal(3) * self.experiment.attitude_sigma()
             else:
                 raise ConfigError(f"start_error = {start!r}; valid: 'default', 'random' or "
                                   "3 angles in rad")
-        self._start_error = _real_array(start, "start_error", "3 finite angles in rad (E, N, U)")
-        if self._start_error.shape != (3,) or not np.all(np.isfinite(self._start_error)):
+        start = _real_array(start, "start_error", "3 finite angles in rad (E, N, U)")
+        if start.shape != (3,) or not np.all(np.isfinite(start)):
             raise ConfigError("start_error must be 3 finite angles in rad (E, N, U)")
-        filt = make_filter(self.estimator, **self.experiment.filter_options())
-        self._filter = filt
-        self._run = AlignmentRun(filt, self.experiment.model(
-            [self._episode], self._start_error, filter_entry(self.estimator).model))
-        self._observed = self.experiment.observed_states(self._run.model.layout)
-        self._episode_seed = episode_seed
-        self._over = False
-        self._frames = []
-        if self.render_mode == "rgb_array" and self.video_path:
-            self._frames.append(self.render())
-        return self._observation(), {"episode_seed": episode_seed,
-                                     "start_error_arcmin": self._start_error / arcmin}
+        return episode_seed, episode, start
 
     @property
     def episode_steps(self) -> int:
         """Steps (filter epochs) of an episode: episode_length / epoch_length."""
         return int(round(self.experiment.fine_duration / self.experiment.filter_step))
+
+    def _checked_actions(self, actions, batch: tuple[int, ...]) -> np.ndarray:
+        """actions (batch + action shape) as floats clipped to [-1, 1]; a wrong shape or
+        a non-finite value raises ValueError."""
+        shape = batch + self.single_action_space.shape
+        a = _real_array(actions, "action", f"{self.single_action_space.shape[0]} real "
+                        "numbers in [-1, 1]", ValueError)
+        if a.shape != shape:
+            raise ValueError(f"action must have shape {shape} (log10 scales of Q_gyro, "
+                             f"Q_accel, R{', floor' if self._fading else ''} in [-1, 1]), "
+                             f"got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {a.tolist()}")
+        return np.clip(a, -1.0, 1.0)
+
+
+class Cohort:
+    """Episodes that started at the same step, run by one batched filter (B members):
+    the single env runs a cohort of one, the vector env one per group of slots that
+    reset together. Every member's numbers are those of a cohort of one."""
+
+    def __init__(self, env: EnvCore, episodes: list[PreparedEpisode], starts: np.ndarray
+                 ) -> None:
+        self.env, self.episodes, self.starts = env, episodes, starts
+        experiment = env.experiment
+        self.filter = make_filter(env.estimator, **experiment.filter_options())
+        self.run = AlignmentRun(self.filter, experiment.model(
+            episodes, starts, filter_entry(env.estimator).model))
+        self.observed = experiment.observed_states(self.run.model.layout)
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                 np.ndarray, list[dict]]:
+        """One filter epoch with each member's action (B, A), clipped already. Returns
+        observations (B, 16), rewards, terminated, truncated (B,) and the infos."""
+        env, run = self.env, self.run
+        if env._fading:
+            self.filter.adaptation.retune(floor=10.0 ** actions[:, 3])
+        mis = env._mistuning
+        run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * actions[:, 0]),
+                          mis["accel_noise"] * 10.0 ** (2 * actions[:, 1])),
+                 r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]))
+        errors = self.attitude_errors()
+        rewards = -np.minimum(np.linalg.norm(errors / REWARD_SCALE, axis=-1), REWARD_CAP)
+        diverged = run.filt.health.diverged.copy()
+        terminated = diverged
+        truncated = np.full(run.batch, run.done) & ~diverged
+        time_s = float(run.t[run.k] - run.t[0])
+        infos = [{"error_arcmin": errors[b] / arcmin, "time_s": time_s,
+                  "diverged": bool(diverged[b])} for b in range(run.batch)]
+        over = terminated | truncated
+        if over.any():
+            analysed = campaign.analyse_run(env.estimator, "env", run.result(),
+                                            self.episodes, env.experiment)
+            for b in np.flatnonzero(over):
+                infos[b]["metrics"] = campaign.episode_metrics(
+                    analysed, int(b), env.experiment, self.episodes[b].fine_start)
+        return self.observations(), rewards, terminated, truncated, infos
+
+    def observations(self) -> np.ndarray:
+        """What each member's filter knows (see the module docstring), (B, 16) float32."""
+        run, filt, space = self.run, self.filter, self.env.single_observation_space
+        obs = np.zeros((run.batch, OBS_SIZE))
+        if filt.innovation is not None:
+            e = filt.innovation / np.sqrt(np.diagonal(filt.S, axis1=-2, axis2=-1))
+            obs[:, 0:min(3, e.shape[-1])] = e[:, :3]
+        sub = self.observed
+        diag = np.diagonal(filt.P, axis1=-2, axis2=-1)[:, sub]
+        diag0 = np.diagonal(run.P[:, 0], axis1=-2, axis2=-1)[:, sub]
+        with np.errstate(divide="ignore"):
+            obs[:, 3:3 + sub.size] = np.log10(np.maximum(diag, 1e-300) / diag0)
+        if run.k > 0 and run.factors is not None and run.factors.shape[-1]:
+            for b in range(run.batch):
+                f = run.factors[b, run.k - 1]
+                f = f[np.isfinite(f)]
+                if f.size > 3:      # more than three (001's weights): the smallest three
+                    f = np.sort(f)[:3]
+                obs[b, 12:12 + f.size] = np.log10(np.maximum(f, 1e-3))
+        obs[:, 15] = run.k / run.epochs
+        return np.clip(obs, space.low, space.high).astype(np.float32)
+
+    def attitude_errors(self) -> np.ndarray:
+        """Each member's attitude error E, N, U (B, 3) rad at the current epoch."""
+        k = self.run.k
+        C_true = np.stack([e.C_s_n_true[k] for e in self.episodes])
+        return misalignment(C_true, self.run.C_s_n[:, k])
+
+
+class AlignmentEnv(EnvCore, gym.Env):
+    """Alignment of the scenario's IMU by one estimator (see the module docstring).
+
+    scenario: scenario name or .toml path; estimator: filter name
+    (``estimators.filters.FILTERS``); episode_length: fine-alignment duration, s;
+    epoch_length: filter epoch, s; render_mode: None or "rgb_array"; video_path: with
+    "rgb_array", write each episode's frames to this MP4 file; mistuning: variance
+    multipliers applied to the filter's tuning before the agent acts ({"gyro_noise",
+    "accel_noise", "measurement"}), to build a deliberately mistuned filter;
+    cache_episodes: number of simulated episodes kept in memory by episode seed
+    (repeated resets with the same seed skip MuJoCo; with more than 0, episodes are also
+    shared with this process's other envs of the same experiment, ``SHARED_EPISODES`` of
+    them; 0: no caching); settings: the experiment's other settings ({name: value}, as
+    ``bench --set``; e.g. a shorter coarse stage); bank: an episode-bank directory
+    (``scenarios.bank``: episodes are loaded from it, or simulated once and stored);
+    split: "train", "validation" or "test" (episodes drawn among the split's first
+    split_episodes seeds; an episode_seed of another split is refused); None: any seed.
+    """
+
+    def __init__(self, scenario: str = "ship-sway-rotary", estimator: str = "kf",
+                 episode_length: float = 600.0, epoch_length: float = 1.0,
+                 render_mode: str | None = None, video_path: str | None = None,
+                 mistuning: dict[str, float] | None = None, cache_episodes: int = 8,
+                 render_size: tuple[int, int] = (240, 320), settings: dict | None = None,
+                 bank: str | Path | None = None, split: str | None = None,
+                 split_episodes: int = 1000) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError(f"render_mode = {render_mode!r}; valid: None, 'rgb_array'")
+        self._configure(scenario, estimator, episode_length, epoch_length, mistuning,
+                        cache_episodes, settings, bank, split, split_episodes)
+        self.render_mode, self.video_path = render_mode, video_path
+        self.action_space = self.single_action_space
+        self.observation_space = self.single_observation_space
+        self._render_size = render_size
+        self._scene = None
+        self._cohort: Cohort | None = None
+        self._run: AlignmentRun | None = None
+        self._over = False
+        self._frames: list[np.ndarray] = []
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Options: "episode_seed" (int, else drawn from np_random), "start_error":
+        "default" (the experiment's: the episode's own coarse alignment for 003, the
+        large azimuth error for 002; "coarse" is the same), "random" (drawn from the
+        filter's initial attitude sigma) or phi E, N, U in rad (3,)."""
+        options = self._check_options(options)
+        super().reset(seed=seed)
+        episode_seed, self._episode, self._start_error = self._begin(options, self.np_random)
+        self._cohort = Cohort(self, [self._episode], self._start_error[None])
+        self._run, self._filter = self._cohort.run, self._cohort.filter
+        self._episode_seed = episode_seed
+        self._over = False
+        self._frames = []
+        if self.render_mode == "rgb_array" and self.video_path:
+            self._frames.append(self.render())
+        return self._cohort.observations()[0], {
+            "episode_seed": episode_seed, "start_error_arcmin": self._start_error / arcmin}
 
     def step(self, action):
         """One filter epoch with the action's tuning. Actions outside [-1, 1] are
@@ -200,69 +346,19 @@ class AlignmentEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._over:
             raise RuntimeError("the episode is over; call reset() before step()")
-        a = _real_array(action, "action", f"{self.action_space.shape[0]} real numbers in [-1, 1]",
-                        ValueError)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape} "
-                             f"(log10 scales of Q_gyro, Q_accel, R{', floor' if self._fading else ''}"
-                             f" in [-1, 1]), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a.tolist()}")
-        a = np.clip(a, -1.0, 1.0)
-        if self._fading:
-            self._filter.adaptation.retune(floor=10.0 ** a[3])
-        run = self._run
-        mis = self._mistuning
-        run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * a[0]),
-                          mis["accel_noise"] * 10.0 ** (2 * a[1])),
-                 r_scale=mis["measurement"] * 10.0 ** (2 * a[2]))
-        k = run.k
-        error = self._attitude_error()
-        reward = -min(float(np.linalg.norm(error / REWARD_SCALE)), REWARD_CAP)
-        diverged = bool(run.filt.health.diverged[0])
-        terminated = diverged
-        truncated = run.done and not diverged
+        a = self._checked_actions(action, ())
+        obs, reward, terminated, truncated, infos = self._cohort.step(a[None])
+        terminated, truncated = bool(terminated[0]), bool(truncated[0])
         self._over = terminated or truncated
-        info = {"error_arcmin": error / arcmin, "time_s": float(run.t[k] -
-                                                                run.t[0]),
-                "diverged": diverged}
-        if self._over:
-            result = run.result()
-            analysed = campaign.analyse_run(self.estimator, "env", result, [self._episode],
-                                            self.experiment)
-            info["metrics"] = campaign.episode_metrics(analysed, 0, self.experiment,
-                                                       self._episode.fine_start)
         if self.render_mode == "rgb_array" and self.video_path:
             self._frames.append(self.render())
             if self._over:
                 self._write_video()
-        return self._observation(), reward, terminated, truncated, info
-
-    def _observation(self) -> np.ndarray:
-        run, filt = self._run, self._filter
-        obs = np.zeros(OBS_SIZE)
-        if filt.innovation is not None:
-            e = filt.innovation[0] / np.sqrt(np.diagonal(filt.S[0]))
-            obs[0:min(3, e.size)] = e[:3]
-        diag = np.diagonal(filt.P[0])
-        diag0 = np.diagonal(run.P[0, 0])
-        sub = self._observed
-        with np.errstate(divide="ignore"):
-            obs[3:3 + sub.size] = np.log10(np.maximum(diag[sub], 1e-300) / diag0[sub])
-        if run.k > 0 and run.factors is not None and run.factors.shape[-1]:
-            f = run.factors[0, run.k - 1]
-            f = f[np.isfinite(f)]
-            if f.size > 3:          # more than three (001's weights): the smallest three
-                f = np.sort(f)[:3]
-            obs[12:12 + f.size] = np.log10(np.maximum(f, 1e-3))
-        obs[15] = run.k / run.epochs
-        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(
-            np.float32)
+        return obs[0], float(reward[0]), terminated, truncated, infos[0]
 
     def _attitude_error(self) -> np.ndarray:
         """The estimator's attitude error E, N, U (3,) rad at the current epoch."""
-        k = self._run.k
-        return misalignment(self._episode.C_s_n_true[k], self._run.C_s_n[0, k])
+        return self._cohort.attitude_errors()[0]
 
     @property
     def alignment_start_s(self) -> float:
