@@ -13,13 +13,26 @@ from aligngym import scenarios
 from aligngym.envs import ENV_IDS
 from aligngym.scenarios.experiments.paper003 import run_campaign
 
-SHORT = {"episode_length": 20.0}
 SHIP_ID = "aligngym/ShipSwayRotary-v0"
+SHIP_QUICK = {"coarse_duration": 20.0, "t_k1": 8.0, "t_k2": 20.0}
+# The env's contract is under test, not the alignment: a 20 s coarse stage (the env's
+# settings) where the experiments take 60-120 s, and 20 s episodes.
+QUICK = {SHIP_ID: SHIP_QUICK, "aligngym/ShipWavesRotary-v0": SHIP_QUICK,
+         "aligngym/RingRoadOdometer-v0": {"coarse_duration": 20.0},
+         "aligngym/Figure8Gps-v0": {"coarse_duration": 20.0},
+         "aligngym/UsvMemsSwing-v0": {"coarse_duration": 20.0},
+         "aligngym/UsvMemsWaves-v0": {"coarse_duration": 20.0},
+         "aligngym/StaticLargeAzimuth-v0": {}}
+SHORT = {"episode_length": 20.0, "settings": SHIP_QUICK}
+
+
+def short(env_id, episode_length=20.0):
+    return {"episode_length": episode_length, "settings": QUICK[env_id]}
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_check_env(env_id):
-    env = gym.make(env_id, **SHORT)
+    env = gym.make(env_id, **short(env_id))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env.unwrapped, skip_render_check=True)
@@ -36,7 +49,7 @@ ADAPTIVE = {"aligngym/Figure8Gps-v0": "swakf", "aligngym/RingRoadOdometer-v0": "
 
 
 def rollout(env_id, seed, steps=12, **kwargs):
-    env = gym.make(env_id, estimator=ADAPTIVE.get(env_id, "imakf"), **SHORT, **kwargs)
+    env = gym.make(env_id, estimator=ADAPTIVE.get(env_id, "imakf"), **short(env_id), **kwargs)
     obs, _ = env.reset(seed=seed)
     env.action_space.seed(seed)
     out = [obs]
@@ -58,10 +71,10 @@ def test_same_seed_same_rollout(env_id):
     assert not np.array_equal(a[1], c[1])
 
 
-@pytest.mark.parametrize("mode", ["sync", "async"])
+@pytest.mark.parametrize("mode", ["sync", "async", "vector_entry_point"])
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_vector_envs(env_id, mode):
-    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **SHORT)
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **short(env_id))
     obs, _ = envs.reset(seed=1)
     assert obs.shape == (2, 16)
     for _ in range(3):
@@ -72,7 +85,7 @@ def test_vector_envs(env_id, mode):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_pickle_and_close_twice(env_id):
-    env = gym.make(env_id, **SHORT)
+    env = gym.make(env_id, **short(env_id))
     env.reset(seed=2)
     env.step(np.zeros(env.action_space.shape, np.float32))
     clone = pickle.loads(pickle.dumps(env))
@@ -87,7 +100,8 @@ def test_pickle_and_close_twice(env_id):
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_rgb_array_frames_and_video(env_id, tmp_path):
     video = tmp_path / "episode.mp4"
-    env = gym.make(env_id, render_mode="rgb_array", video_path=str(video), episode_length=5.0)
+    env = gym.make(env_id, render_mode="rgb_array", video_path=str(video),
+                   **short(env_id, episode_length=5.0))
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8

@@ -135,10 +135,16 @@ def test_campaign_outputs_and_json_shape(sway_campaign, tmp_path):
     np.testing.assert_allclose(np.abs(summary["coarse"]["max_deg"]), np.abs(coarse).max(0))
 
 
+# The campaign directory's handling is under test, not the alignment: a 30 s coarse
+# stage and 60 s of fine alignment (bench --set).
+FAST = ["--set", "fine_duration=60", "--set", "coarse_duration=30", "--set", "t_k1=10",
+        "--set", "t_k2=30"]
+
+
 def test_resume_keeps_finished_episodes(tmp_path):
     out = tmp_path / "c"
-    args = ["bench", "paper003", "--episodes", "2", "--filters", "kf", "--out", str(out),
-            "--json", str(tmp_path / "a.json"), "--workers", "1"]
+    args = ["bench", "paper003", "--episodes", "2", "--filters", "kf", *FAST, "--out",
+            str(out), "--json", str(tmp_path / "a.json"), "--workers", "1"]
     assert main(args) == 0
     files = sorted((out / "episodes").glob("*.npz"))
     assert len(files) == 2
@@ -153,10 +159,10 @@ def test_resume_keeps_finished_episodes(tmp_path):
 
 def test_resume_refuses_another_experiment(tmp_path):
     out = tmp_path / "c"
-    assert main(["bench", "paper003", "--episodes", "1", "--filters", "kf", "--out", str(out),
-                 "--workers", "1"]) == 0
-    assert main(["bench", "paper003", "--episodes", "1", "--filters", "kf", "--out", str(out),
-                 "--seed", "5", "--resume", "--workers", "1"]) == 2
+    assert main(["bench", "paper003", "--episodes", "1", "--filters", "kf", *FAST, "--out",
+                 str(out), "--workers", "1"]) == 0
+    assert main(["bench", "paper003", "--episodes", "1", "--filters", "kf", *FAST, "--out",
+                 str(out), "--seed", "5", "--resume", "--workers", "1"]) == 2
 
 
 def test_outputs_checked_before_any_work(tmp_path, capsys):
@@ -164,7 +170,7 @@ def test_outputs_checked_before_any_work(tmp_path, capsys):
     files: no other seed's episodes mix in); an unwritable --json or --out is refused
     in one line before any episode is simulated."""
     out = tmp_path / "c"
-    base = ["bench", "paper003", "--episodes", "1", "--filters", "kf", "--workers", "1"]
+    base = ["bench", "paper003", "--episodes", "1", "--filters", "kf", "--workers", "1", *FAST]
     assert main(base + ["--out", str(out)]) == 0
     capsys.readouterr()
     assert main(base + ["--out", str(out), "--seed", "5"]) == 2
@@ -237,7 +243,7 @@ def test_bench_paper_setup_table(tmp_path):
     """--setup paper: the R-scaling filters by default, the same JSON shape."""
     path = tmp_path / "p.json"
     assert main(["bench", "paper003", "--setup", "paper", "--episodes", "2", "--workers", "1",
-                 "--json", str(path)]) == 0
+                 *FAST, "--json", str(path)]) == 0
     summary = json.loads(path.read_text())
     assert set(summary["fine"]) == {"kf", "sakf-r", "makf-r", "imakf-r"}
     assert set(summary["fine"]["makf-r"]) == {"mean", "max"}
