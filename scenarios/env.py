@@ -4,21 +4,27 @@ fine alignment); each step is one filter epoch. The observation holds only what 
 filter knows; the action rescales the filter's noise tuning; the reward and ``info`` use
 the truth.
 
-Observation (float32, 16): normalised innovations e_i / sqrt(S_ii) (up to 3, clipped to
-+-10); log10 of the attitude and bias covariance diagonal relative to its initial value
-(up to 9: the experiment's attitude, gyro-drift and accelerometer-bias states, 003: 9,
-002: 8; clipped to [-20, 5]); log10 of the current fading factors (3, zero where the
-filter has fewer, the smallest three of 001's weights; clipped to [-2, 3]); elapsed fraction of the fine alignment (1).
-Unused entries are zero.
+Observation (float32, 20): the normalised innovations e_i / sqrt(S_ii), all of the
+measurement (``INNOVATIONS``, 7 slots: 001's position, velocity and GPS heading, 004's
+velocity and position, 3 for 000 and 003, 2 for 002; a missing component is 0; clipped
+to +-10); log10 of the attitude and bias covariance diagonal relative to its initial
+value (``COVARIANCE``, up to 9: the experiment's attitude, gyro-drift and
+accelerometer-bias states, 003: 9, 002: 8; clipped to [-20, 5]); log10 of the current
+fading factors (``FACTORS``, 3, zero where the filter has fewer, the smallest three of
+001's weights; clipped to [-2, 3]); the elapsed fraction of the fine alignment
+(``ELAPSED``). Unused entries are zero.
 
 Action (float32 in [-1, 1]): log-scale multipliers 10^(2 a) on the variances of the
 gyro white noise, the accelerometer white noise and the measurement noise, and, for
 fading-factor filters, 10^a on the fading-factor floor (tuned value 1). The zero action
 runs the filter exactly as tuned.
 
-Reward: minus the attitude error after the epoch,
-sqrt((phi_E / 1')^2 + (phi_N / 1')^2 + (phi_U / 10')^2), capped at 100: level errors
-count per arcminute, heading errors per 10 arcminutes.
+Reward (``reward``, one of ``REWARDS``): "attitude" (the default) is minus the attitude
+error after the epoch, e = sqrt((phi_E / 1')^2 + (phi_N / 1')^2 + (phi_U / 10')^2),
+capped at 100: level errors count per arcminute, heading errors per 10 arcminutes;
+"log" is -log10(1 + e) (every decade of error counts alike, no cap); "final" is 0 until
+the episode's last step, which gets -min(e, 100) times the episode's steps (the same
+scale as "attitude" summed; only where the filter ends counts).
 """
 from __future__ import annotations
 
@@ -56,9 +62,14 @@ def _real_array(value, name: str, expected: str, error: type = ConfigError) -> n
         raise error(f"{name} must be {expected}, got {array.dtype} values")
     return array.astype(float)
 
-OBS_SIZE = 16
+INNOVATIONS = slice(0, 7)
+COVARIANCE = slice(7, 16)
+FACTORS = slice(16, 19)
+ELAPSED = 19
+OBS_SIZE = 20
 REWARD_SCALE = np.array([1.0, 1.0, 10.0]) * arcmin
 REWARD_CAP = 100.0
+REWARDS = ("attitude", "log", "final")
 
 
 class EnvCore:
@@ -70,7 +81,7 @@ class EnvCore:
     def _configure(self, scenario: str, estimator: str, episode_length: float,
                    epoch_length: float, mistuning: dict[str, float] | None,
                    cache_episodes: int, settings: dict | None, bank: str | Path | None,
-                   split: str | None, split_episodes: int) -> None:
+                   split: str | None, split_episodes: int, reward: str) -> None:
         try:
             filter_entry(estimator)
         except UnknownFilter as exc:
@@ -78,6 +89,9 @@ class EnvCore:
         if not (episode_length > 0 and epoch_length > 0 and episode_length >= epoch_length):
             raise ConfigError("need episode_length >= epoch_length > 0 s, got "
                               f"{episode_length}, {epoch_length}")
+        if reward not in REWARDS:
+            raise ConfigError(f"reward = {reward!r}; valid: " + ", ".join(REWARDS))
+        self.reward = reward
         settings = dict(settings or {})
         clash = sorted({"fine_duration", "filter_step", "scenario"} & set(settings))
         if clash:
@@ -104,8 +118,13 @@ class EnvCore:
         self._fading = filter_entry(estimator).fading
         self.single_action_space = spaces.Box(-1.0, 1.0, (4 if self._fading else 3,),
                                               np.float32)
-        low = np.concatenate([np.full(3, -10.0), np.full(9, -20.0), np.full(3, -2.0), [0.0]])
-        high = np.concatenate([np.full(3, 10.0), np.full(9, 5.0), np.full(3, 3.0), [1.0]])
+        width = lambda part: len(range(OBS_SIZE)[part])  # noqa: E731
+        low = np.concatenate([np.full(width(INNOVATIONS), -10.0),
+                              np.full(width(COVARIANCE), -20.0),
+                              np.full(width(FACTORS), -2.0), [0.0]])
+        high = np.concatenate([np.full(width(INNOVATIONS), 10.0),
+                               np.full(width(COVARIANCE), 5.0),
+                               np.full(width(FACTORS), 3.0), [1.0]])
         self.single_observation_space = spaces.Box(low.astype(np.float32),
                                                    high.astype(np.float32), dtype=np.float32)
         self._cache: OrderedDict[int, PreparedEpisode] = OrderedDict()
@@ -187,6 +206,17 @@ class EnvCore:
             raise ConfigError("start_error must be 3 finite angles in rad (E, N, U)")
         return episode_seed, episode, start
 
+    def rewards(self, errors: np.ndarray, over: np.ndarray) -> np.ndarray:
+        """The reward (see the module docstring) of attitude errors (B, 3) rad, over (B,):
+        the episodes that end at this step."""
+        e = np.linalg.norm(errors / REWARD_SCALE, axis=-1)
+        if self.reward == "log":
+            return -np.log10(1.0 + e)
+        capped = -np.minimum(e, REWARD_CAP)
+        if self.reward == "final":
+            return np.where(over, capped * self.episode_steps, 0.0)
+        return capped
+
     @property
     def episode_steps(self) -> int:
         """Steps (filter epochs) of an episode: episode_length / epoch_length."""
@@ -224,7 +254,7 @@ class Cohort:
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                  np.ndarray, list[dict]]:
         """One filter epoch with each member's action (B, A), clipped already. Returns
-        observations (B, 16), rewards, terminated, truncated (B,) and the infos."""
+        observations (B, OBS_SIZE), rewards, terminated, truncated (B,) and the infos."""
         env, run = self.env, self.run
         if env._fading:
             self.filter.adaptation.retune(floor=10.0 ** actions[:, 3])
@@ -233,10 +263,10 @@ class Cohort:
                           mis["accel_noise"] * 10.0 ** (2 * actions[:, 1])),
                  r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]))
         errors = self.attitude_errors()
-        rewards = -np.minimum(np.linalg.norm(errors / REWARD_SCALE, axis=-1), REWARD_CAP)
         diverged = run.filt.health.diverged.copy()
         terminated = diverged
         truncated = np.full(run.batch, run.done) & ~diverged
+        rewards = env.rewards(errors, terminated | truncated)
         time_s = float(run.t[run.k] - run.t[0])
         infos = [{"error_arcmin": errors[b] / arcmin, "time_s": time_s,
                   "diverged": bool(diverged[b])} for b in range(run.batch)]
@@ -250,25 +280,30 @@ class Cohort:
         return self.observations(), rewards, terminated, truncated, infos
 
     def observations(self) -> np.ndarray:
-        """What each member's filter knows (see the module docstring), (B, 16) float32."""
+        """What each member's filter knows (see the module docstring), (B, OBS_SIZE)
+        float32."""
         run, filt, space = self.run, self.filter, self.env.single_observation_space
         obs = np.zeros((run.batch, OBS_SIZE))
+        first = INNOVATIONS.start
         if filt.innovation is not None:
-            e = filt.innovation / np.sqrt(np.diagonal(filt.S, axis1=-2, axis2=-1))
-            obs[:, 0:min(3, e.shape[-1])] = e[:, :3]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e = filt.innovation / np.sqrt(np.diagonal(filt.S, axis1=-2, axis2=-1))
+            m = min(e.shape[-1], INNOVATIONS.stop - first)
+            obs[:, first:first + m] = np.where(filt.valid, e, 0.0)[:, :m]
         sub = self.observed
         diag = np.diagonal(filt.P, axis1=-2, axis2=-1)[:, sub]
         diag0 = np.diagonal(run.P[:, 0], axis1=-2, axis2=-1)[:, sub]
+        first = COVARIANCE.start
         with np.errstate(divide="ignore"):
-            obs[:, 3:3 + sub.size] = np.log10(np.maximum(diag, 1e-300) / diag0)
+            obs[:, first:first + sub.size] = np.log10(np.maximum(diag, 1e-300) / diag0)
         if run.k > 0 and run.factors is not None and run.factors.shape[-1]:
             for b in range(run.batch):
                 f = run.factors[b, run.k - 1]
                 f = f[np.isfinite(f)]
                 if f.size > 3:      # more than three (001's weights): the smallest three
                     f = np.sort(f)[:3]
-                obs[b, 12:12 + f.size] = np.log10(np.maximum(f, 1e-3))
-        obs[:, 15] = run.k / run.epochs
+                obs[b, FACTORS.start:FACTORS.start + f.size] = np.log10(np.maximum(f, 1e-3))
+        obs[:, ELAPSED] = run.k / run.epochs
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def attitude_errors(self) -> np.ndarray:
@@ -294,7 +329,8 @@ class AlignmentEnv(EnvCore, gym.Env):
     ``bench --set``; e.g. a shorter coarse stage); bank: an episode-bank directory
     (``scenarios.bank``: episodes are loaded from it, or simulated once and stored);
     split: "train", "validation" or "test" (episodes drawn among the split's first
-    split_episodes seeds; an episode_seed of another split is refused); None: any seed.
+    split_episodes seeds; an episode_seed of another split is refused); None: any seed;
+    reward: one of ``REWARDS`` (see the module docstring).
     """
 
     def __init__(self, scenario: str = "ship-sway-rotary", estimator: str = "kf",
@@ -303,11 +339,11 @@ class AlignmentEnv(EnvCore, gym.Env):
                  mistuning: dict[str, float] | None = None, cache_episodes: int = 8,
                  render_size: tuple[int, int] = (240, 320), settings: dict | None = None,
                  bank: str | Path | None = None, split: str | None = None,
-                 split_episodes: int = 1000) -> None:
+                 split_episodes: int = 1000, reward: str = "attitude") -> None:
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode = {render_mode!r}; valid: None, 'rgb_array'")
         self._configure(scenario, estimator, episode_length, epoch_length, mistuning,
-                        cache_episodes, settings, bank, split, split_episodes)
+                        cache_episodes, settings, bank, split, split_episodes, reward)
         self.render_mode, self.video_path = render_mode, video_path
         self.action_space = self.single_action_space
         self.observation_space = self.single_observation_space

@@ -40,7 +40,7 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
                  epoch_length: float = 1.0, mistuning: dict[str, float] | None = None,
                  cache_episodes: int = 8, settings: dict | None = None,
                  bank: str | Path | None = None, split: str | None = None,
-                 split_episodes: int = 1000,
+                 split_episodes: int = 1000, reward: str = "attitude",
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  render_mode: str | None = None) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) \
@@ -55,7 +55,8 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
             raise ConfigError(f"autoreset_mode = {autoreset_mode!r}; valid: " + ", ".join(
                 m.value for m in AutoresetMode)) from None
         self._configure(scenario, estimator, episode_length, epoch_length, mistuning,
-                        max(cache_episodes, 0), settings, bank, split, split_episodes)
+                        max(cache_episodes, 0), settings, bank, split, split_episodes,
+                        reward)
         self.num_envs = int(num_envs)
         self.render_mode = None
         self.metadata = {**self.metadata, "autoreset_mode": mode}

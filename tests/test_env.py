@@ -11,6 +11,8 @@ from gymnasium.utils.env_checker import check_env
 
 from aligngym import scenarios
 from aligngym.envs import ENV_IDS
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.env import OBS_SIZE
 from aligngym.scenarios.experiments.paper003 import run_campaign
 
 SHIP_ID = "aligngym/ShipSwayRotary-v0"
@@ -76,7 +78,7 @@ def test_same_seed_same_rollout(env_id):
 def test_vector_envs(env_id, mode):
     envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **short(env_id))
     obs, _ = envs.reset(seed=1)
-    assert obs.shape == (2, 16)
+    assert obs.shape == (2, OBS_SIZE)
     for _ in range(3):
         obs, reward, terminated, truncated, _ = envs.step(envs.action_space.sample())
     assert reward.shape == (2,) and np.all(np.isfinite(reward))
@@ -213,3 +215,47 @@ def test_agent_improves_a_mistuned_filter():
     # Measurably better than the zero action on unseen episodes (reward is <= 0).
     assert out["agent_test"] > 0.8 * out["zero_test"]
     assert out["agent_test"] - out["zero_test"] > 1.0
+
+
+@pytest.mark.parametrize("env_id, measured", [("aligngym/Figure8Gps-v0", 7),
+                                              ("aligngym/UsvMemsSwing-v0", 6), (SHIP_ID, 3)])
+def test_observation_holds_the_whole_innovation(env_id, measured):
+    """Every component of the measurement's innovation, normalised by its predicted sigma
+    (001: position, velocity and the GPS heading, which is missing while the car stands:
+    0), then nothing in the unused slots."""
+    from aligngym.scenarios.env import INNOVATIONS
+    env = gym.make(env_id, **short(env_id))
+    env.reset(seed=3)
+    for _ in range(5):
+        obs = env.step(np.zeros(env.action_space.shape, np.float32))[0]
+    filt = env.unwrapped._filter
+    e = filt.innovation[0] / np.sqrt(np.diagonal(filt.S[0]))
+    expected = np.where(filt.valid[0], np.clip(e, -10, 10), 0.0)
+    assert e.size == measured
+    np.testing.assert_array_equal(obs[INNOVATIONS][:measured], expected.astype(np.float32))
+    assert not obs[INNOVATIONS][measured:].any()
+    if env_id == "aligngym/Figure8Gps-v0":   # standing still: no GPS heading
+        assert not filt.valid[0, 6] and obs[6] == 0.0 and np.all(obs[:6] != 0.0)
+    env.close()
+
+
+def test_reward_options_are_transforms_of_the_attitude_error():
+    """"log" = -log10(1 + e), "final" = the last step's capped e times the episode's steps,
+    0 before; the same observations whatever the reward."""
+    runs = {}
+    for reward in ("attitude", "log", "final"):
+        # the experiment's own coarse stage: errors below the cap
+        env = gym.make(SHIP_ID, estimator="kf", reward=reward, episode_length=20.0)
+        env.reset(seed=2)
+        out = [env.step(np.zeros(3, np.float32))[:2] for _ in range(env.unwrapped.episode_steps)]
+        runs[reward] = (np.array([o for o, _ in out]), np.array([r for _, r in out]))
+        env.close()
+    obs, attitude = runs["attitude"]
+    assert np.all(attitude > -100.0)                       # below the cap here
+    np.testing.assert_allclose(runs["log"][1], -np.log10(1.0 - attitude), rtol=1e-12)
+    final = runs["final"][1]
+    assert np.all(final[:-1] == 0.0) and final[-1] == pytest.approx(20 * attitude[-1])
+    for reward in ("log", "final"):
+        np.testing.assert_array_equal(runs[reward][0], obs)
+    with pytest.raises(ConfigError, match="reward"):
+        gym.make(SHIP_ID, reward="heading-only")

@@ -9,6 +9,7 @@ from gymnasium.vector import AutoresetMode
 import aligngym  # noqa: F401  (registers the ids)
 from aligngym.scenarios.bank import SPLITS, EpisodeBank, split_of, split_seeds
 from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.env import ELAPSED, OBS_SIZE
 from aligngym.scenarios.experiments import experiment_for
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 
@@ -74,7 +75,7 @@ def test_make_vec_defaults_to_the_native_env_on_every_id():
     envs = gym.make_vec(SHIP_ID, num_envs=2, **QUICK)
     assert isinstance(envs.unwrapped, AlignmentVectorEnv)
     obs, info = envs.reset(seed=1)
-    assert obs.shape == (2, 16) and info["_episode_seed"].all()
+    assert obs.shape == (2, OBS_SIZE) and info["_episode_seed"].all()
     envs.close()
 
 
@@ -95,7 +96,7 @@ def test_next_step_autoreset_semantics():
     obs, reward, terminated, truncated, info = env.step(np.full(env.action_space.shape, 5.0, np.float32))
     assert np.array_equal(reward, [0.0, 0.0]) and not (terminated | truncated).any()
     assert info["_episode_seed"].all() and not np.array_equal(info["episode_seed"], first)
-    assert np.all(obs[:, 15] == 0.0)                     # the first epoch of the new episodes
+    assert np.all(obs[:, ELAPSED] == 0.0)                     # the first epoch of the new episodes
     env.close()
 
 
@@ -107,8 +108,8 @@ def test_same_step_autoreset_keeps_the_final_observation():
     for _ in range(env.episode_steps):
         obs, _, terminated, truncated, info = env.step(zero)
     assert truncated.all()
-    assert info["_final_obs"].all() and info["final_obs"][0][15] == 1.0   # the last epoch
-    assert np.all(obs[:, 15] == 0.0)                      # already the next episodes
+    assert info["_final_obs"].all() and info["final_obs"][0][ELAPSED] == 1.0   # the last epoch
+    assert np.all(obs[:, ELAPSED] == 0.0)                      # already the next episodes
     assert "metrics" in info["final_info"] and info["_episode_seed"].all()
     env.close()
 
