@@ -71,13 +71,17 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         self._autoreset = np.zeros(self.num_envs, bool)
 
     # --- slots ----------------------------------------------------------------------------
-    def _start(self, slots: list[int], seeds: list[int | None], options: dict) -> list[dict]:
-        """Begin a new episode in each slot (one cohort for all of them); their infos."""
+    def _start(self, slots: list[int], seeds: list[int | None], options: dict,
+               episode_seeds: list | None = None) -> list[dict]:
+        """Begin a new episode in each slot (one cohort for all of them; episode_seeds:
+        one per slot, else the options'); their infos."""
         begun = []
-        for i, seed in zip(slots, seeds):
+        for n, (i, seed) in enumerate(zip(slots, seeds)):
             if seed is not None or self._rngs[i] is None:
                 self._rngs[i], _ = seeding.np_random(seed)
-            begun.append(self._begin(options, self._rngs[i]))
+            own = options if episode_seeds is None else {**options,
+                                                          "episode_seed": episode_seeds[n]}
+            begun.append(self._begin(own, self._rngs[i]))
         cohort = Cohort(self, [episode for _, episode, _ in begun],
                         np.stack([start for _, _, start in begun]))
         obs = cohort.observations()
@@ -94,9 +98,23 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
               options: dict | None = None):
         """Reset every slot (seed: None, an int (slot i gets seed + i) or one per slot), or
         the slots of ``options["reset_mask"]`` (bool (num_envs,)); the other options are
-        ``AlignmentEnv.reset``'s, applied to every slot reset."""
+        ``AlignmentEnv.reset``'s, applied to every slot reset, except that
+        "episode_seed" may also give one seed per slot (a sequence of num_envs: slot i
+        runs the i-th; SyncVectorEnv would pass the whole sequence to every env)."""
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
+        per_slot = options.get("episode_seed")
+        if per_slot is not None and np.ndim(per_slot) == 1:
+            if len(per_slot) != self.num_envs:
+                raise ConfigError(f"episode_seed: {len(per_slot)} seeds for num_envs = "
+                                  f"{self.num_envs}")
+            per_slot = [int(s) if isinstance(s, (int, np.integer)) and not isinstance(
+                s, bool) else s for s in per_slot]
+            for s in per_slot:
+                self._check_options({"episode_seed": s})
+            options.pop("episode_seed")
+        else:
+            per_slot = None
         options = self._check_options(options)
         if seed is None:
             seeds = [None] * self.num_envs
@@ -116,7 +134,9 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
                                   f"({self.num_envs},) with a True value")
             slots = [int(i) for i in np.flatnonzero(mask)]
         infos: dict = {}
-        for i, info in zip(slots, self._start(slots, [seeds[i] for i in slots], options)):
+        chosen = None if per_slot is None else [per_slot[i] for i in slots]
+        for i, info in zip(slots, self._start(slots, [seeds[i] for i in slots], options,
+                                              chosen)):
             infos = self._add_info(infos, info, i)
         return self._obs.copy(), infos
 

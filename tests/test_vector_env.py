@@ -227,3 +227,14 @@ def test_bank_command_fills_the_bank_the_env_then_loads(tmp_path, capsys, monkey
     env.close()
     assert cli.main(["bank", "ship-sway-rotary", "--out", str(tmp_path), "--split",
                      "test", "--first", str(2 ** 31)]) == 2
+
+
+def test_one_episode_seed_per_slot():
+    env = AlignmentVectorEnv(3, scenario="ship-sway-rotary", **QUICK)
+    _, info = env.reset(options={"episode_seed": [11, 12, 13]})
+    assert info["episode_seed"].tolist() == [11, 12, 13] == env.episode_seeds.tolist()
+    with pytest.raises(ConfigError, match="2 seeds for num_envs = 3"):
+        env.reset(options={"episode_seed": [1, 2]})
+    with pytest.raises(ConfigError, match="episode_seed must be an integer"):
+        env.reset(options={"episode_seed": [1, -2, 3]})
+    env.close()
