@@ -209,7 +209,17 @@ class GaussianFilter:
         self.health.flag(~S_ok & live, t, "innovation covariance not positive definite")
         live = live & S_ok
         S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
-        K = np.swapaxes(np.linalg.solve(S_safe, HP), -1, -2)
+        try:
+            K = np.swapaxes(np.linalg.solve(S_safe, HP), -1, -2)
+        except np.linalg.LinAlgError:      # an episode's S singular to working precision
+            K = np.zeros(HP.shape[:1] + HP.shape[:0:-1])
+            for b in range(S.shape[0]):
+                try:
+                    K[b] = np.linalg.solve(S_safe[b], HP[b]).T
+                except np.linalg.LinAlgError:
+                    self.health.flag(np.arange(S.shape[0]) == b, t,
+                                     "innovation covariance singular")
+                    live[b] = False
         x_new = self.x + np.einsum("bij,bj->bi", K, innovation)
         if self.angles:
             x_new[:, list(self.angles)] = wrap_angle(x_new[:, list(self.angles)])

@@ -41,33 +41,38 @@ SLOTS = 16
 
 def score(env: AlignmentVectorEnv, seeds: list[int], policy) -> dict[str, np.ndarray]:
     """Run each seed's episode once (a slot each) under policy(obs) -> actions; per
-    episode: the mean reward per epoch up to its end, its final heading error (arcmin)
-    and whether it diverged."""
+    episode: its summed reward per epoch of the episode's length (a diverged one is
+    charged the worst reward for the epochs it did not run, by the env), its final
+    heading error (arcmin) and whether it diverged."""
     obs, _ = env.reset(options={"episode_seed": seeds})
     n = env.num_envs
-    total, steps = np.zeros(n), np.zeros(n)
+    total = np.zeros(n)
     heading, diverged = np.full(n, np.nan), np.zeros(n, bool)
     live = np.ones(n, bool)
     while live.any():
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         total[live] += reward[live]
-        steps[live] += 1
         for i in np.flatnonzero(live & (terminated | truncated)):
             heading[i] = info["metrics"]["final_phi_U_arcmin"][i]
             diverged[i] = bool(info["metrics"]["diverged"][i])
         live &= ~(terminated | truncated)
-    return {"reward": total / steps, "heading": heading, "diverged": diverged}
+    return {"reward": total / env.episode_steps, "heading": heading, "diverged": diverged}
 
 
 def interval(values: np.ndarray, statistic) -> tuple[float, float, float]:
     """The statistic and its 95 % bootstrap interval (percentile, 2000 resamples, fixed seed)."""
     value = float(statistic(values))
+    if np.ptp(values) == 0.0:                    # every episode the same (an arm vs itself)
+        return value, value, value
     ci = stats.bootstrap((values,), statistic, confidence_level=0.95, n_resamples=2000,
                          random_state=np.random.default_rng(0), method="percentile")
     return value, float(ci.confidence_interval.low), float(ci.confidence_interval.high)
 
 
-def summarise(arm: str, filter_name: str, result: dict, extra: dict | None = None) -> dict:
+def summarise(arm: str, filter_name: str, result: dict, extra: dict | None = None,
+              reference: dict | None = None) -> dict:
+    """The arm's statistics; with reference (the base filter as tuned on the same
+    episodes), the paired difference of the reward per epoch and its interval."""
     rms = lambda x, axis=-1: np.sqrt(np.mean(np.square(x), axis=axis))  # noqa: E731
     reward = interval(result["reward"], lambda x, axis=-1: np.mean(x, axis=axis))
     heading = interval(result["heading"], rms)
@@ -75,6 +80,9 @@ def summarise(arm: str, filter_name: str, result: dict, extra: dict | None = Non
             "heading_rms_arcmin": heading,
             "heading_median_abs_arcmin": float(np.median(np.abs(result["heading"]))),
             "diverged": int(result["diverged"].sum()), "episodes": int(result["reward"].size),
+            "reward_gain_vs_base": None if reference is None else interval(
+                result["reward"] - reference["reward"],
+                lambda x, axis=-1: np.mean(x, axis=axis)),
             **(extra or {})}
 
 
@@ -173,17 +181,23 @@ def main() -> None:
     bank_s = time.perf_counter() - clock
 
     def make(n: int, split: str, estimator: str = base, **kwargs) -> AlignmentVectorEnv:
+        """n slots on a split (a reset after a divergence draws among its banked seeds)."""
         return AlignmentVectorEnv(n, scenario=args.scenario, estimator=estimator,
                                   episode_length=args.episode_length, bank=args.bank,
-                                  split=split, split_episodes=args.train, cache_episodes=0,
-                                  **kwargs)
+                                  split=split, split_episodes=len(train if split == "train"
+                                                                  else test),
+                                  cache_episodes=0, **kwargs)
 
-    rows = []
+    rows, tuned = [], {}
     for f in filters:                                  # as tuned
         env = make(len(test), "test", f)
         zero = np.zeros(env.single_action_space.shape, np.float32)
-        rows.append(summarise("as tuned", f, score(env, test, constant(zero, len(test)))))
+        tuned[f] = score(env, test, constant(zero, len(test)))
+        rows.append(summarise("as tuned", f, tuned[f], reference=tuned.get(base)))
         env.close()
+    for row, f in zip(rows, filters):                  # the base filter came last
+        row["reward_gain_vs_base"] = summarise("", f, tuned[f],
+                                               reference=tuned[base])["reward_gain_vs_base"]
     start = time.perf_counter()
     action, history = cross_entropy(make, train[:args.ce_episodes], args.ce_iterations,
                                     args.ce_population)
@@ -191,7 +205,8 @@ def main() -> None:
     rows.append(summarise("constant retune (CE)", base, score(
         env, test, constant(action, len(test))), {"action": action.round(3).tolist(),
                                                  "train_reward": history,
-                                                 "wall_s": time.perf_counter() - start}))
+                                                 "wall_s": time.perf_counter() - start},
+        reference=tuned[base]))
     env.close()
     from stable_baselines3 import PPO
     start = time.perf_counter()
@@ -203,7 +218,7 @@ def main() -> None:
     env = make(len(test), "test")
     rows.append(summarise("PPO policy", base, score(
         env, test, lambda obs: model.predict(obs, deterministic=True)[0]),
-        {"ppo_steps": args.ppo_steps, "wall_s": trained}))
+        {"ppo_steps": args.ppo_steps, "wall_s": trained}, reference=tuned[base]))
     env.close()
     out = {"scenario": args.scenario, "experiment": name, "episode_length_s":
            args.episode_length, "train_episodes": args.train, "test_episodes": args.test,
@@ -213,14 +228,16 @@ def main() -> None:
         Path(args.out).write_text(json.dumps(out, indent=1))
     print(f"{args.scenario}: {args.test} test episodes, {args.train} training, "
           f"{out['wall_s']:.0f} s")
-    print("| arm | filter | reward / epoch [95 % CI] | heading RMS, ' [95 % CI] | "
-          "median abs heading, ' | diverged |")
-    print("| --- | --- | --- | --- | --- | --- |")
+    print(f"| arm | filter | reward / epoch [95 % CI] | gain over `{base}` as tuned "
+          "(paired) [95 % CI] | heading RMS, ' [95 % CI] | median abs heading, ' | "
+          "diverged |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
     for r in rows:
         (rw, rl, rh), (hw, hl, hh) = r["reward_per_epoch"], r["heading_rms_arcmin"]
+        gw, gl, gh = r["reward_gain_vs_base"]
         print(f"| {r['arm']} | `{r['filter']}` | {rw:.2f} [{rl:.2f}, {rh:.2f}] | "
-              f"{hw:.2f} [{hl:.2f}, {hh:.2f}] | {r['heading_median_abs_arcmin']:.2f} | "
-              f"{r['diverged']} |")
+              f"{gw:+.2f} [{gl:+.2f}, {gh:+.2f}] | {hw:.2f} [{hl:.2f}, {hh:.2f}] | "
+              f"{r['heading_median_abs_arcmin']:.2f} | {r['diverged']} |")
 
 
 if __name__ == "__main__":

@@ -78,8 +78,30 @@ def _numbers_as_floats(value):
     return str(value)
 
 
+SIMULATION_SOURCES = ("models", "sensors", "estimators", "scenarios/experiments",
+                      "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py")
+"""The package's code that prepares an episode: any change to it is a new bank."""
+
+
+def simulation_code_sha256() -> str:
+    """A hash of ``SIMULATION_SOURCES`` (the .py files, in name order)."""
+    root = Path(__file__).resolve().parents[1]        # the package's source root
+    digest = hashlib.sha256()
+    for part in SIMULATION_SOURCES:
+        path = root / part
+        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
+        for f in files:
+            digest.update(str(f.relative_to(root)).encode())
+            digest.update(f.read_bytes())
+    return digest.hexdigest()
+
+
 def bank_key(experiment) -> dict:
-    """What decides an experiment's prepared episodes (the bank's key, as JSON)."""
+    """What decides an experiment's prepared episodes (the bank's key, as JSON): its
+    settings, the scenario file's bytes, the simulation code and the versions of
+    aligngym, MuJoCo and NumPy."""
+    import mujoco
+    import numpy
     from importlib.metadata import PackageNotFoundError, version
     try:
         release = version("aligngym")
@@ -90,7 +112,9 @@ def bank_key(experiment) -> dict:
     return json.loads(json.dumps({"experiment": type(experiment).__module__.rsplit(".", 1)[-1],
                                   "settings": _numbers_as_floats(asdict(experiment)),
                                   "scenario_sha256": digest,
-                                  "aligngym": release}, default=str))
+                                  "code_sha256": simulation_code_sha256(),
+                                  "aligngym": release, "mujoco": mujoco.__version__,
+                                  "numpy": numpy.__version__}, default=str))
 
 
 def bank_directory(root: str | Path, experiment) -> Path:
@@ -110,13 +134,22 @@ class EpisodeBank:
         self.experiment = experiment
         self.directory = bank_directory(root, experiment)
         self.episodes = self.directory / "episodes"
+        key = bank_key(experiment)
+        manifest = self.directory / "bank.json"
         try:
             self.episodes.mkdir(parents=True, exist_ok=True)
-            if not (self.directory / "bank.json").is_file():
-                write_json(self.directory / "bank.json", bank_key(experiment))
+            if not manifest.is_file():
+                write_json(manifest, key)
+            saved = json.loads(manifest.read_text())
         except OSError as exc:
             raise ConfigError(f"bank {root}: cannot create {self.episodes} "
                               f"({exc.strerror})") from None
+        except json.JSONDecodeError:
+            saved = None
+        if saved != key:
+            raise ConfigError(f"bank {self.directory}: its bank.json is not this "
+                              "experiment's key (a copied or damaged bank); use another "
+                              "bank directory")
 
     def path(self, seed: int) -> Path:
         return self.episodes / f"seed_{seed}.npz"
@@ -139,7 +172,7 @@ class EpisodeBank:
         """Prepare the seeds the bank lacks, in parallel (local processes or Ray, with a
         progress bar); returns how many were simulated."""
         from aligngym.scenarios.campaign.executors import prepare_all
-        missing = [s for s in seeds if not self.path(s).is_file()]
+        missing = [s for s in seeds if not self.path(s).is_file()]   # damaged ones: named
         for i in range(0, len(seeds), BUILD_CHUNK):   # a chunk at a time in memory
             prepare_all(self.experiment, seeds[i:i + BUILD_CHUNK], self.directory,
                         resume=True, workers=workers, progress=progress, executor=executor,

@@ -238,7 +238,8 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
     bnk.add_argument("--episodes", type=_positive_int("--episodes"), default=100,
                      metavar="N", help="episodes: the split's seeds FIRST .. FIRST + N - 1 "
                      "(default: 100)")
-    bnk.add_argument("--first", type=_seed, default=0, metavar="K",
+    bnk.add_argument("--first", type=_positive_int("--first", minimum=0), default=0,
+                     metavar="K",
                      help="the first episode of the split (default: 0)")
     bnk.add_argument("--episode-length", type=_float_option("--episode-length"),
                      default=600.0, metavar="S", help="the env's episode_length, s "
@@ -268,15 +269,16 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
     return parser
 
 
-def _positive_int(field: str):
+def _positive_int(field: str, minimum: int = 1):
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{field} must be an integer >= 1, got {text!r}"
-                                              ) from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{field} must be an integer >= 1, got {value}")
+            raise argparse.ArgumentTypeError(f"{field} must be an integer >= {minimum}, "
+                                              f"got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{field} must be an integer >= {minimum}, "
+                                              f"got {value}")
         return value
     return parse
 
@@ -518,13 +520,17 @@ def _cmd_bank(args: argparse.Namespace) -> int:
     import os
 
     from aligngym.scenarios.bank import EpisodeBank, split_seeds
-    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.config import ConfigError, load_scenario
     from aligngym.scenarios.experiments import experiment_class, experiment_for
 
     config = load_scenario(args.scenario)
     args.paper = config.experiment or "the scenario's experiment"
     settings = _settings_of(experiment_class(config.experiment), args) if (
         config.experiment and args.set) else {}
+    clash = sorted({"fine_duration", "filter_step", "scenario"} & set(settings))
+    if clash:
+        raise ConfigError(f"--set {clash[0]}: set by --episode-length, --epoch-length or "
+                          "SCENARIO")
     seeds = split_seeds(args.split, args.episodes, args.first)
     experiment = experiment_for(args.scenario, fine_duration=args.episode_length,
                                 filter_step=args.epoch_length, **settings)

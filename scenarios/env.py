@@ -24,7 +24,9 @@ error after the epoch, e = sqrt((phi_E / 1')^2 + (phi_N / 1')^2 + (phi_U / 10')^
 capped at 100: level errors count per arcminute, heading errors per 10 arcminutes;
 "log" is -log10(1 + e) (every decade of error counts alike, no cap); "final" is 0 until
 the episode's last step, which gets -min(e, 100) times the episode's steps (the same
-scale as "attitude" summed; only where the filter ends counts).
+scale as "attitude" summed; only where the filter ends counts). A diverged episode's
+last step is also charged the worst reward (-100, or -log10(101)) for each epoch it did
+not run, so that ending early never pays.
 """
 from __future__ import annotations
 
@@ -206,16 +208,20 @@ class EnvCore:
             raise ConfigError("start_error must be 3 finite angles in rad (E, N, U)")
         return episode_seed, episode, start
 
-    def rewards(self, errors: np.ndarray, over: np.ndarray) -> np.ndarray:
-        """The reward (see the module docstring) of attitude errors (B, 3) rad, over (B,):
-        the episodes that end at this step."""
+    def rewards(self, errors: np.ndarray, over: np.ndarray, diverged: np.ndarray,
+                remaining: int) -> np.ndarray:
+        """The reward (see the module docstring) of attitude errors (B, 3) rad; over (B,):
+        the episodes that end at this step; diverged (B,): those ending by divergence,
+        which are charged the worst reward for each of the remaining epochs (so that
+        ending early never pays)."""
         e = np.linalg.norm(errors / REWARD_SCALE, axis=-1)
         if self.reward == "log":
-            return -np.log10(1.0 + e)
-        capped = -np.minimum(e, REWARD_CAP)
-        if self.reward == "final":
-            return np.where(over, capped * self.episode_steps, 0.0)
-        return capped
+            worst, reward = -np.log10(1.0 + REWARD_CAP), -np.log10(1.0 + e)
+        else:
+            worst, reward = -REWARD_CAP, -np.minimum(e, REWARD_CAP)
+            if self.reward == "final":
+                reward = np.where(over, reward * self.episode_steps, 0.0)
+        return np.where(diverged, reward + worst * remaining, reward)
 
     @property
     def episode_steps(self) -> int:
@@ -250,6 +256,8 @@ class Cohort:
         self.run = AlignmentRun(self.filter, experiment.model(
             episodes, starts, filter_entry(env.estimator).model))
         self.observed = experiment.observed_states(self.run.model.layout)
+        self.ended = np.zeros(self.run.batch, bool)
+        """Members whose episode has ended (their metrics given once)."""
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                  np.ndarray, list[dict]]:
@@ -266,11 +274,13 @@ class Cohort:
         diverged = run.filt.health.diverged.copy()
         terminated = diverged
         truncated = np.full(run.batch, run.done) & ~diverged
-        rewards = env.rewards(errors, terminated | truncated)
+        over = (terminated | truncated) & ~self.ended     # ending at this step
+        rewards = env.rewards(errors, terminated | truncated, terminated & over,
+                              run.epochs - run.k)
+        self.ended |= over
         time_s = float(run.t[run.k] - run.t[0])
         infos = [{"error_arcmin": errors[b] / arcmin, "time_s": time_s,
                   "diverged": bool(diverged[b])} for b in range(run.batch)]
-        over = terminated | truncated
         if over.any():
             analysed = campaign.analyse_run(env.estimator, "env", run.result(),
                                             self.episodes, env.experiment)

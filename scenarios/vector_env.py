@@ -59,7 +59,7 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
                         reward)
         self.num_envs = int(num_envs)
         self.render_mode = None
-        self.metadata = {**self.metadata, "autoreset_mode": mode}
+        self.metadata = {**self.metadata, "render_modes": [], "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

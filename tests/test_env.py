@@ -76,11 +76,24 @@ def test_same_seed_same_rollout(env_id):
 @pytest.mark.parametrize("mode", ["sync", "async", "vector_entry_point"])
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_vector_envs(env_id, mode):
-    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **short(env_id))
+    """Every mode on every id; the native one (each model's per-episode noise scales, a
+    batch of 2) gives the single envs' numbers bit for bit under different actions."""
+    kwargs = {"estimator": ADAPTIVE.get(env_id, "imakf"), **short(env_id)}
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, **kwargs)
+    twin = (gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **kwargs)
+            if mode == "vector_entry_point" else None)
     obs, _ = envs.reset(seed=1)
     assert obs.shape == (2, OBS_SIZE)
+    if twin is not None:
+        np.testing.assert_array_equal(twin.reset(seed=1)[0], obs)
+    rng = np.random.default_rng(1)
     for _ in range(3):
-        obs, reward, terminated, truncated, _ = envs.step(envs.action_space.sample())
+        action = rng.uniform(-1, 1, envs.action_space.shape).astype(np.float32)
+        obs, reward, terminated, truncated, _ = envs.step(action)
+        if twin is not None:
+            same = twin.step(action)
+            np.testing.assert_array_equal(same[0], obs)
+            np.testing.assert_array_equal(same[1], reward)
     assert reward.shape == (2,) and np.all(np.isfinite(reward))
     envs.close()
 

@@ -238,3 +238,21 @@ def test_one_episode_seed_per_slot():
     with pytest.raises(ConfigError, match="episode_seed must be an integer"):
         env.reset(options={"episode_seed": [1, -2, 3]})
     env.close()
+
+
+def test_a_diverging_slot_ends_alone_and_is_charged_its_missing_epochs():
+    """A filter made to diverge (measurement noise 1e-30, gyro noise 1e30 of its tuning): the diverged
+    slots terminate, their last reward carries -100 per epoch not run, their metrics
+    come once, and the vector env still equals the single envs bit for bit."""
+    kwargs = {**QUICK, "estimator": "kf", "mistuning": {"measurement": 1e-30, "gyro_noise": 1e30}}
+    native = gym.make_vec(SHIP_ID, num_envs=3, **kwargs)
+    sync = gym.make_vec(SHIP_ID, num_envs=3, vectorization_mode="sync", **kwargs)
+    a, b = play(native, 14, seed=3), play(sync, 14, seed=3)
+    for x, y in zip(a, b):
+        for u, v in zip(x, y):
+            assert_same(u, v)
+    ends = [(k, out) for k, out in enumerate(a[1:]) if out[2].any()]
+    assert ends, "no slot diverged"
+    k, (_, reward, terminated, _, info) = ends[0]
+    i = int(np.flatnonzero(terminated)[0])
+    assert reward[i] <= -100.0 * (12 - k - 1) and info["metrics"]["diverged"][i]
