@@ -459,16 +459,21 @@ class AlignmentEnv(EnvCore, gym.Env):
 
 
 def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0,
-             start_error: np.ndarray | str = "default", **env_kwargs) -> list[dict]:
+             start_error: np.ndarray | str = "default", split: str | None = None,
+             **env_kwargs) -> list[dict]:
     """Run the estimator passively (zero action) on the campaign's episode seeds and return
-    the per-episode metrics table (the campaign's rows for the same seeds and start)."""
+    the per-episode metrics table (the campaign's rows for the same seeds and start);
+    with split ("test", say), on that split's first episodes instead (campaign seeds
+    below 1600 are training seeds: score an agent on "test")."""
+    from aligngym.scenarios.bank import split_seeds
     from aligngym.scenarios.campaign import episode_seeds
 
-    env = gym.make(env_id, estimator=estimator, **env_kwargs)
+    seeds = split_seeds(split, episodes) if split else episode_seeds(seed, episodes)
+    env = gym.make(env_id, estimator=estimator, split=split, **env_kwargs)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     rows = []
     try:
-        for s in episode_seeds(seed, episodes):
+        for s in seeds:
             env.reset(seed=s, options={"episode_seed": s, "start_error": start_error})
             while True:
                 _, _, terminated, truncated, info = env.step(zero)

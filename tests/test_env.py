@@ -272,3 +272,10 @@ def test_reward_options_are_transforms_of_the_attitude_error():
         np.testing.assert_array_equal(runs[reward][0], obs)
     with pytest.raises(ConfigError, match="reward"):
         gym.make(SHIP_ID, reward="heading-only")
+
+
+def test_evaluate_on_the_test_split():
+    from aligngym.scenarios.bank import split_seeds
+    rows = scenarios.evaluate(SHIP_ID, "kf", episodes=2, split="test", **SHORT)
+    assert [r["seed"] for r in rows] == split_seeds("test", 2)
+    assert all(np.isfinite(r["final_phi_U_arcmin"]) for r in rows)
