@@ -582,23 +582,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     from aligngym.scenarios.config import ConfigError
+    from aligngym.scenarios.interrupts import remember_interrupts
 
+    commands = {"simulate": _cmd_simulate, "bench": _cmd_bench, "regress": _cmd_regress,
+                "reproduce": _cmd_reproduce, "bank": _cmd_bank, "report": _cmd_report,
+                "render": _cmd_render, "fidelity": _cmd_fidelity}
     try:
-        if args.command == "simulate":
-            return _cmd_simulate(args)
-        if args.command == "bench":
-            return _cmd_bench(args)
-        if args.command == "regress":
-            return _cmd_regress(args)
-        if args.command == "reproduce":
-            return _cmd_reproduce(args)
-        if args.command == "bank":
-            return _cmd_bank(args)
-        if args.command == "report":
-            return _cmd_report(args)
-        if args.command == "render":
-            return _cmd_render(args)
-        return _cmd_fidelity(args)
+        with remember_interrupts():
+            return commands[args.command](args)
     except ConfigError as exc:
         print(f"aligngym: error: {exc}", file=sys.stderr)
         return 2

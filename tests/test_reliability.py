@@ -384,3 +384,30 @@ def test_a_malformed_baseline_is_one_line(content, tmp_path):
     (tmp_path / "regress_paper002.json").write_text(content, encoding="latin-1")
     with pytest.raises(ConfigError, match="run with --update"):
         regress(["paper002"], directory=tmp_path)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_ctrl_c_dropped_in_a_finaliser_still_stops_the_campaign(tmp_path, monkeypatch):
+    """Python drops a KeyboardInterrupt raised inside a finaliser; the CLI's handler
+    remembers it and the next finished episode raises it again: exit 130, one line."""
+    import gc
+    from aligngym.scenarios import interrupts
+    from aligngym.scenarios.campaign import executors
+
+    class Finalised:
+        def __del__(self):
+            interrupts._handler(signal.SIGINT, None)     # the Ctrl-C, inside a __del__
+
+    prepare = executors.PreparedEpisode.save
+
+    def save_and_drop(self, path):
+        prepare(self, path)
+        Finalised()
+        gc.collect()                                     # dropped: "Exception ignored"
+    monkeypatch.setattr(executors.PreparedEpisode, "save", save_and_drop)
+    out = tmp_path / "c"
+    code = main(["bench", "paper002", "--episodes", "3", "--filters", "ekf", "--workers",
+                 "1", "--out", str(out)])
+    assert code == 130
+    assert len(list((out / "episodes").glob("seed_*.npz"))) == 1     # stopped at the next
+    interrupts.raise_if_interrupted()          # nothing remembered after the command

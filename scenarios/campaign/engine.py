@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from aligngym.scenarios.interrupts import raise_if_interrupted
 from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
 from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
@@ -63,6 +64,7 @@ def _run(experiment: Experiment, episodes: int, seed: int, filters: list[str],
     from tqdm import tqdm          # after the checks: their errors answer at once
     jobs = [(f, s) for f in filters for s in experiment.starts]
     for name, start in tqdm(jobs, disable=not progress, desc="filters"):
+        raise_if_interrupted()
         result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
                                       experiment, filter_threads(name, experiment, workers)))
     return result

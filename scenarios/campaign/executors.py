@@ -13,6 +13,7 @@ from pathlib import Path
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
 from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.interrupts import raise_if_interrupted
 
 
 EXECUTORS = ("local", "ray")
@@ -47,6 +48,7 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
     bar = tqdm(total=len(seeds), initial=len(done), disable=not progress, desc="episodes")
 
     def finish(s: int, episode: PreparedEpisode) -> None:
+        raise_if_interrupted()
         if episode_dir is not None:
             episode.save(path(s))
         done[s] = episode
