@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.filters import GaussianFilter, solve_each
 from aligngym.estimators.model import FilterModel, Scale
 
 
@@ -106,7 +106,8 @@ class AlignmentRun:
             e = np.where(live[:, None] & valid, e, 0.0)
             S = np.where(live[:, None, None] & valid[:, :, None] & valid[:, None, :], S, eye)
             S = np.where(np.isfinite(S), S, eye)
-            nis = _nis(e, S)
+            # NaN for an episode whose S is singular (its filter flags it)
+            nis = np.einsum("bi,bi->b", e, solve_each(S, e[..., None])[0][..., 0])
             dof = valid.sum(-1)
             self.nis[:, k] = np.where((dof > 0) & live, nis, np.nan)
             self.nis_dof[:, k] = dof
@@ -130,20 +131,6 @@ class AlignmentRun:
                           series={name: values[:, : k + 1]
                                   for name, values in self.model.series().items()},
                           nis=self.nis[:, :k].copy(), nis_dof=self.nis_dof[:, :k].copy())
-
-
-def _nis(e: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """e^T S^-1 e (B,); NaN for an episode whose S is singular (its filter flags it)."""
-    try:
-        return np.einsum("bi,bi->b", e, np.linalg.solve(S, e[..., None])[..., 0])
-    except np.linalg.LinAlgError:
-        out = np.full(e.shape[0], np.nan)
-        for b in range(e.shape[0]):
-            try:
-                out[b] = e[b] @ np.linalg.solve(S[b], e[b])
-            except np.linalg.LinAlgError:
-                pass
-        return out
 
 
 def run_alignment(filt: GaussianFilter, model: FilterModel) -> FineResult:

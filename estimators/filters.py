@@ -66,6 +66,21 @@ def _floor_eigenvalues(P: np.ndarray, relative: float = 1e-12) -> np.ndarray:
     return (vecs * vals[:, None, :]) @ np.swapaxes(vecs, -1, -2)
 
 
+def solve_each(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A^-1 B for a batch (A (K, n, n), B (K, n, m)) and solved (K,): False where A is
+    singular to working precision (its rows NaN); one batched solve when none is."""
+    try:
+        return np.linalg.solve(A, B), np.ones(A.shape[0], bool)
+    except np.linalg.LinAlgError:
+        X, solved = np.full(np.shape(B), np.nan), np.zeros(A.shape[0], bool)
+        for b in range(A.shape[0]):
+            try:
+                X[b], solved[b] = np.linalg.solve(A[b], B[b]), True
+            except np.linalg.LinAlgError:
+                pass
+        return X, solved
+
+
 def _innovation(observation: Observation, z: np.ndarray, z_hat: np.ndarray,
                 valid: np.ndarray) -> np.ndarray:
     """z - z_hat (B, m), angle components wrapped, zero where the measurement is missing."""
@@ -209,17 +224,12 @@ class GaussianFilter:
         self.health.flag(~S_ok & live, t, "innovation covariance not positive definite")
         live = live & S_ok
         S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
-        try:
-            K = np.swapaxes(np.linalg.solve(S_safe, HP), -1, -2)
-        except np.linalg.LinAlgError:      # an episode's S singular to working precision
-            K = np.zeros(HP.shape[:1] + HP.shape[:0:-1])
-            for b in range(S.shape[0]):
-                try:
-                    K[b] = np.linalg.solve(S_safe[b], HP[b]).T
-                except np.linalg.LinAlgError:
-                    self.health.flag(np.arange(S.shape[0]) == b, t,
-                                     "innovation covariance singular")
-                    live[b] = False
+        S_inv_HP, solved = solve_each(S_safe, HP)
+        if not solved.all():               # an episode's S singular to working precision
+            self.health.flag(~solved & live, t, "innovation covariance singular")
+            live = live & solved
+            S_inv_HP = np.where(solved[:, None, None], S_inv_HP, 0.0)
+        K = np.swapaxes(S_inv_HP, -1, -2)
         x_new = self.x + np.einsum("bij,bj->bi", K, innovation)
         if self.angles:
             x_new[:, list(self.angles)] = wrap_angle(x_new[:, list(self.angles)])

@@ -30,7 +30,7 @@ from scipy import stats
 
 import aligngym  # noqa: F401  (registers the env ids)
 from aligngym.scenarios.bank import EpisodeBank, split_seeds
-from aligngym.scenarios.experiments import experiment_for
+from aligngym.scenarios.experiments import env_experiment
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 
 BASE = {"paper000": "ekf", "paper001": "lckf", "paper002": "ekf", "paper003": "kf",
@@ -69,10 +69,10 @@ def interval(values: np.ndarray, statistic) -> tuple[float, float, float]:
     return value, float(ci.confidence_interval.low), float(ci.confidence_interval.high)
 
 
-def summarise(arm: str, filter_name: str, result: dict, extra: dict | None = None,
-              reference: dict | None = None) -> dict:
-    """The arm's statistics; with reference (the base filter as tuned on the same
-    episodes), the paired difference of the reward per epoch and its interval."""
+def summarise(arm: str, filter_name: str, result: dict, reference: dict,
+              extra: dict | None = None) -> dict:
+    """The arm's statistics, and the paired difference of its reward per epoch from
+    reference's (the base filter as tuned on the same episodes) with its interval."""
     rms = lambda x, axis=-1: np.sqrt(np.mean(np.square(x), axis=axis))  # noqa: E731
     reward = interval(result["reward"], lambda x, axis=-1: np.mean(x, axis=axis))
     heading = interval(result["heading"], rms)
@@ -80,9 +80,8 @@ def summarise(arm: str, filter_name: str, result: dict, extra: dict | None = Non
             "heading_rms_arcmin": heading,
             "heading_median_abs_arcmin": float(np.median(np.abs(result["heading"]))),
             "diverged": int(result["diverged"].sum()), "episodes": int(result["reward"].size),
-            "reward_gain_vs_base": None if reference is None else interval(
-                result["reward"] - reference["reward"],
-                lambda x, axis=-1: np.mean(x, axis=axis)),
+            "reward_gain_vs_base": interval(result["reward"] - reference["reward"],
+                                            lambda x, axis=-1: np.mean(x, axis=axis)),
             **(extra or {})}
 
 
@@ -170,8 +169,7 @@ def main() -> None:
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     clock = time.perf_counter()
-    experiment = experiment_for(args.scenario, fine_duration=args.episode_length,
-                                filter_step=1.0)
+    experiment = env_experiment(args.scenario, args.episode_length, 1.0)
     name = type(experiment).__module__.rsplit(".", 1)[-1]
     base = BASE[name]
     filters = [f for f in dict.fromkeys([*experiment.default_filters, base])]
@@ -188,25 +186,21 @@ def main() -> None:
                                                                   else test),
                                   cache_episodes=0, **kwargs)
 
-    rows, tuned = [], {}
+    tuned = {}
     for f in filters:                                  # as tuned
         env = make(len(test), "test", f)
         zero = np.zeros(env.single_action_space.shape, np.float32)
         tuned[f] = score(env, test, constant(zero, len(test)))
-        rows.append(summarise("as tuned", f, tuned[f], reference=tuned.get(base)))
         env.close()
-    for row, f in zip(rows, filters):                  # the base filter came last
-        row["reward_gain_vs_base"] = summarise("", f, tuned[f],
-                                               reference=tuned[base])["reward_gain_vs_base"]
+    rows = [summarise("as tuned", f, tuned[f], tuned[base]) for f in filters]
     start = time.perf_counter()
     action, history = cross_entropy(make, train[:args.ce_episodes], args.ce_iterations,
                                     args.ce_population)
     env = make(len(test), "test")
     rows.append(summarise("constant retune (CE)", base, score(
-        env, test, constant(action, len(test))), {"action": action.round(3).tolist(),
-                                                 "train_reward": history,
-                                                 "wall_s": time.perf_counter() - start},
-        reference=tuned[base]))
+        env, test, constant(action, len(test))), tuned[base],
+        {"action": action.round(3).tolist(), "train_reward": history,
+         "wall_s": time.perf_counter() - start}))
     env.close()
     from stable_baselines3 import PPO
     start = time.perf_counter()
@@ -217,8 +211,8 @@ def main() -> None:
     trained = time.perf_counter() - start
     env = make(len(test), "test")
     rows.append(summarise("PPO policy", base, score(
-        env, test, lambda obs: model.predict(obs, deterministic=True)[0]),
-        {"ppo_steps": args.ppo_steps, "wall_s": trained}, reference=tuned[base]))
+        env, test, lambda obs: model.predict(obs, deterministic=True)[0]), tuned[base],
+        {"ppo_steps": args.ppo_steps, "wall_s": trained}))
     env.close()
     out = {"scenario": args.scenario, "experiment": name, "episode_length_s":
            args.episode_length, "train_episodes": args.train, "test_episodes": args.test,

@@ -117,9 +117,8 @@ def bank_key(experiment) -> dict:
                                   "numpy": numpy.__version__}, default=str))
 
 
-def bank_directory(root: str | Path, experiment) -> Path:
-    """The bank's campaign-style directory for this experiment (holds ``episodes/``)."""
-    key = bank_key(experiment)
+def bank_directory(root: str | Path, key: dict) -> Path:
+    """The bank's campaign-style directory for an experiment's key (holds ``episodes/``)."""
     text = json.dumps(key, sort_keys=True)
     name = f"{key['experiment']}-{hashlib.sha256(text.encode()).hexdigest()[:16]}"
     return Path(root) / name
@@ -132,9 +131,9 @@ class EpisodeBank:
     def __init__(self, root: str | Path, experiment) -> None:
         from aligngym.scenarios.atomic import write_json
         self.experiment = experiment
-        self.directory = bank_directory(root, experiment)
-        self.episodes = self.directory / "episodes"
         key = bank_key(experiment)
+        self.directory = bank_directory(root, key)
+        self.episodes = self.directory / "episodes"
         manifest = self.directory / "bank.json"
         try:
             self.episodes.mkdir(parents=True, exist_ok=True)

@@ -520,20 +520,16 @@ def _cmd_bank(args: argparse.Namespace) -> int:
     import os
 
     from aligngym.scenarios.bank import EpisodeBank, split_seeds
-    from aligngym.scenarios.config import ConfigError, load_scenario
-    from aligngym.scenarios.experiments import experiment_class, experiment_for
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.experiments import env_experiment, experiment_class
 
     config = load_scenario(args.scenario)
     args.paper = config.experiment or "the scenario's experiment"
     settings = _settings_of(experiment_class(config.experiment), args) if (
         config.experiment and args.set) else {}
-    clash = sorted({"fine_duration", "filter_step", "scenario"} & set(settings))
-    if clash:
-        raise ConfigError(f"--set {clash[0]}: set by --episode-length, --epoch-length or "
-                          "SCENARIO")
     seeds = split_seeds(args.split, args.episodes, args.first)
-    experiment = experiment_for(args.scenario, fine_duration=args.episode_length,
-                                filter_step=args.epoch_length, **settings)
+    experiment = env_experiment(args.scenario, args.episode_length, args.epoch_length,
+                                settings, config=config)
     bank = EpisodeBank(args.out, experiment)
     start = time.perf_counter()
     simulated = bank.build(seeds, workers=args.workers or os.cpu_count() or 1,

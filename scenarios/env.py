@@ -45,7 +45,7 @@ from aligngym.scenarios.bank import SPLITS, EpisodeBank, check_seed_in_split, ch
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios import campaign
 from aligngym.scenarios.campaign import PreparedEpisode
-from aligngym.scenarios.experiments import experiment_for
+from aligngym.scenarios.experiments import env_experiment
 
 SHARED_EPISODES = 16
 """Prepared episodes kept per process across env instances (vectorised envs and repeated
@@ -94,17 +94,8 @@ class EnvCore:
         if reward not in REWARDS:
             raise ConfigError(f"reward = {reward!r}; valid: " + ", ".join(REWARDS))
         self.reward = reward
-        settings = dict(settings or {})
-        clash = sorted({"fine_duration", "filter_step", "scenario"} & set(settings))
-        if clash:
-            raise ConfigError(f"settings key {clash[0]!r} is set by the env's own arguments "
-                              "(episode_length, epoch_length, scenario)")
         self.estimator = estimator
-        try:
-            self.experiment = experiment_for(scenario, fine_duration=episode_length,
-                                             filter_step=epoch_length, **settings)
-        except TypeError as exc:          # a settings key the experiment does not have
-            raise ConfigError(f"settings: {exc}") from None
+        self.experiment = env_experiment(scenario, episode_length, epoch_length, settings)
         self.config = self.experiment.scenario_config()
         self.experiment.check_filters([estimator])
         factors = {"gyro_noise": 1.0, "accel_noise": 1.0, "measurement": 1.0,
@@ -250,7 +241,7 @@ class Cohort:
 
     def __init__(self, env: EnvCore, episodes: list[PreparedEpisode], starts: np.ndarray
                  ) -> None:
-        self.env, self.episodes, self.starts = env, episodes, starts
+        self.env, self.episodes = env, episodes
         experiment = env.experiment
         self.filter = make_filter(env.estimator, **experiment.filter_options())
         self.run = AlignmentRun(self.filter, experiment.model(

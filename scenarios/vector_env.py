@@ -185,8 +185,8 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
             else:
                 infos = self._add_info(infos, slot_infos[i], i)
         # same-step: the ended slots run their next episode already
-        self._autoreset = ((terminated | truncated) if self.autoreset_mode != AutoresetMode.SAME_STEP
-                           else np.zeros(self.num_envs, bool))
+        same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        self._autoreset = (terminated | truncated) & (not same_step)
         return self._obs.copy(), rewards, terminated, truncated, infos
 
     @property

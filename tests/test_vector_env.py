@@ -93,34 +93,36 @@ def test_next_step_autoreset_semantics():
     _, _, terminated, truncated, info = env.step(zero)
     assert truncated.all() and not terminated.any()
     assert info["_metrics"].all() and np.isfinite(info["metrics"]["final_phi_U_arcmin"]).all()
-    obs, reward, terminated, truncated, info = env.step(np.full(env.action_space.shape, 5.0, np.float32))
+    obs, reward, terminated, truncated, info = env.step(
+        np.full(env.action_space.shape, 5.0, np.float32))
     assert np.array_equal(reward, [0.0, 0.0]) and not (terminated | truncated).any()
     assert info["_episode_seed"].all() and not np.array_equal(info["episode_seed"], first)
-    assert np.all(obs[:, ELAPSED] == 0.0)                     # the first epoch of the new episodes
+    assert np.all(obs[:, ELAPSED] == 0.0)           # the first epoch of the new episodes
     env.close()
 
 
-def test_same_step_autoreset_keeps_the_final_observation():
-    env = AlignmentVectorEnv(2, scenario="ship-sway-rotary",
-                             autoreset_mode=AutoresetMode.SAME_STEP, **QUICK)
+def through_one_episode(mode):
+    """Two slots in this autoreset mode, reset with seed 3 and stepped through one
+    episode with the zero action: the env, the zero action and the last step's output."""
+    env = AlignmentVectorEnv(2, scenario="ship-sway-rotary", autoreset_mode=mode, **QUICK)
     env.reset(seed=3)
     zero = np.zeros(env.action_space.shape, np.float32)
     for _ in range(env.episode_steps):
-        obs, _, terminated, truncated, info = env.step(zero)
+        out = env.step(zero)
+    return env, zero, out
+
+
+def test_same_step_autoreset_keeps_the_final_observation():
+    env, _, (obs, _, terminated, truncated, info) = through_one_episode(AutoresetMode.SAME_STEP)
     assert truncated.all()
-    assert info["_final_obs"].all() and info["final_obs"][0][ELAPSED] == 1.0   # the last epoch
+    assert info["_final_obs"].all() and info["final_obs"][0][ELAPSED] == 1.0   # last epoch
     assert np.all(obs[:, ELAPSED] == 0.0)                      # already the next episodes
     assert "metrics" in info["final_info"] and info["_episode_seed"].all()
     env.close()
 
 
 def test_disabled_autoreset_needs_a_reset_mask():
-    env = AlignmentVectorEnv(2, scenario="ship-sway-rotary",
-                             autoreset_mode=AutoresetMode.DISABLED, **QUICK)
-    env.reset(seed=3)
-    zero = np.zeros(env.action_space.shape, np.float32)
-    for _ in range(env.episode_steps):
-        env.step(zero)
+    env, zero, _ = through_one_episode(AutoresetMode.DISABLED)
     with pytest.raises(RuntimeError, match="reset_mask"):
         env.step(zero)
     env.reset(options={"reset_mask": np.array([True, True])})
@@ -227,6 +229,9 @@ def test_bank_command_fills_the_bank_the_env_then_loads(tmp_path, capsys, monkey
     env.close()
     assert cli.main(["bank", "ship-sway-rotary", "--out", str(tmp_path), "--split",
                      "test", "--first", str(2 ** 31)]) == 2
+    capsys.readouterr()
+    assert cli.main([*argv, "--set", "fine_duration=20"]) == 2     # --episode-length's
+    assert "set by episode_length" in capsys.readouterr().err
 
 
 def test_one_episode_seed_per_slot():
@@ -241,10 +246,11 @@ def test_one_episode_seed_per_slot():
 
 
 def test_a_diverging_slot_ends_alone_and_is_charged_its_missing_epochs():
-    """A filter made to diverge (measurement noise 1e-30, gyro noise 1e30 of its tuning): the diverged
-    slots terminate, their last reward carries -100 per epoch not run, their metrics
-    come once, and the vector env still equals the single envs bit for bit."""
-    kwargs = {**QUICK, "estimator": "kf", "mistuning": {"measurement": 1e-30, "gyro_noise": 1e30}}
+    """A filter made to diverge (measurement noise 1e-30, gyro noise 1e30 of its tuning):
+    the diverged slots terminate, their last reward carries -100 per epoch not run, their
+    metrics come once, and the vector env still equals the single envs bit for bit."""
+    kwargs = {**QUICK, "estimator": "kf",
+              "mistuning": {"measurement": 1e-30, "gyro_noise": 1e30}}
     native = gym.make_vec(SHIP_ID, num_envs=3, **kwargs)
     sync = gym.make_vec(SHIP_ID, num_envs=3, vectorization_mode="sync", **kwargs)
     a, b = play(native, 14, seed=3), play(sync, 14, seed=3)

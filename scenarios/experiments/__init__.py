@@ -64,13 +64,30 @@ def regress_campaigns() -> dict[str, dict]:
     return out
 
 
-def experiment_for(scenario: str, **settings) -> "Experiment":
+def experiment_for(scenario: str, config=None, **settings) -> "Experiment":
     """The experiment that runs on a scenario (a shipped name or a .toml path): the one
-    its file names in its ``experiment`` key."""
+    its file names in its ``experiment`` key (config: the file already loaded)."""
     from aligngym.scenarios.config import load_scenario
-    config = load_scenario(scenario)
+    config = load_scenario(scenario) if config is None else config
     if not config.experiment:
         raise ConfigError(f"scenario {config.name!r} names no experiment (its file has no "
                           "experiment key; valid: " + ", ".join(experiment_names()) + "); shipped "
                           "scenarios with one: " + ", ".join(sorted(SCENARIO_PAPER)))
     return experiment(config.experiment, scenario=scenario, **settings).holding(config)
+
+
+def env_experiment(scenario: str, episode_length: float, epoch_length: float,
+                   settings: dict | None = None, config=None) -> "Experiment":
+    """The experiment an env (and its episode bank) runs: the scenario's, its fine stage
+    episode_length s in epochs of epoch_length s, with the other settings; a setting
+    those arguments fix, or one the experiment does not have, is a one-line error."""
+    settings = dict(settings or {})
+    clash = sorted({"fine_duration", "filter_step", "scenario"} & set(settings))
+    if clash:
+        raise ConfigError(f"settings key {clash[0]!r} is set by episode_length "
+                          "(--episode-length), epoch_length (--epoch-length) or the scenario")
+    try:
+        return experiment_for(scenario, config=config, fine_duration=episode_length,
+                              filter_step=epoch_length, **settings)
+    except TypeError as exc:              # a settings key the experiment does not have
+        raise ConfigError(f"settings: {exc}") from None
