@@ -16,7 +16,7 @@ command line, ``--filters module.path:factory`` does the same without code in th
 package (factory() returns a ``FilterEntry`` or an ``IntegrationRule``).
 
 Importing ``aligngym`` registers its gymnasium ids (``aligngym.envs``):
-``aligngym/<Scenario>-v0`` per shipped scenario and ``aligngym/Alignment-v0`` for any
+``aligngym/<Scenario>-v1`` per shipped scenario and ``aligngym/Alignment-v1`` for any
 scenario file.
 """
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """The gymnasium ids, registered when ``aligngym`` is imported (gymnasium 1.x loads no
 plugin entry points; ``gym.register_envs(aligngym)`` or the ``"aligngym:<id>"`` form of
-``gym.make`` are the usual ways to make sure it is): ``aligngym/<Scenario>-v0`` for each
-shipped scenario that names an experiment (e.g. ``aligngym/ShipSwayRotary-v0``), and
-``aligngym/Alignment-v0`` for any scenario file that names one
-(``gym.make("aligngym/Alignment-v0", scenario="my.toml", ...)``). Registration imports
+``gym.make`` are the usual ways to make sure it is): ``aligngym/<Scenario>-v1`` for each
+shipped scenario that names an experiment (e.g. ``aligngym/ShipSwayRotary-v1``), and
+``aligngym/Alignment-v1`` for any scenario file that names one
+(``gym.make("aligngym/Alignment-v1", scenario="my.toml", ...)``). Registration imports
 gymnasium only; the env and its experiment load at ``gym.make``."""
 from __future__ import annotations
 

@@ -9,7 +9,7 @@ import numpy as np
 
 import aligngym  # noqa: F401  (registers the env ids)
 
-SHIP_ID = "aligngym/ShipSwayRotary-v0"
+SHIP_ID = "aligngym/ShipSwayRotary-v1"
 
 
 def steps_per_second(estimator: str, steps: int = 599) -> tuple[float, float]:

@@ -35,7 +35,7 @@ def main() -> None:
     parser.add_argument("--scenario", default="ship-sway-rotary")
     parser.add_argument("--estimator", default="kf")
     args = parser.parse_args()
-    env_id = "aligngym/" + "".join(w.capitalize() for w in args.scenario.split("-")) + "-v0"
+    env_id = "aligngym/" + "".join(w.capitalize() for w in args.scenario.split("-")) + "-v1"
     length = float(args.steps + 10)
     with tempfile.TemporaryDirectory() as bank:
         kwargs = dict(estimator=args.estimator, episode_length=length, bank=bank,

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aligngym.estimators.linalg import solve_each
+
 FACTOR_AXES = ("measurement", "local-level")
 """Axes along which per-axis factors are formed: the measurement's own (the papers), or
 local East, North, Up (the observation's ``axes`` rotation)."""
@@ -222,9 +224,10 @@ class SingleFadingFactor(InnovationFading):
         e = np.where(valid, ctx.innovation, 0.0)
         S = np.where(valid[:, :, None] & valid[:, None, :], ctx.S,
                      np.eye(e.shape[-1])[None])
-        nis = np.einsum("bi,bi->b", e, np.linalg.solve(S, e[..., None])[..., 0])
+        x, solved = solve_each(S, e[..., None])   # a singular S: its filter flags it
+        nis = np.einsum("bi,bi->b", e, x[..., 0])
         dof = np.maximum(valid.sum(-1), 1)
-        flagged = nis > chi2.ppf(self.outlier_probability, dof)
+        flagged = solved & (nis > chi2.ppf(self.outlier_probability, dof))
         if self._flagged_run.shape != flagged.shape:
             self._flagged_run = np.zeros(flagged.shape, int)
         self._flagged_run = np.where(flagged, self._flagged_run + 1, 0)

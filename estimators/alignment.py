@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aligngym.estimators.filters import GaussianFilter, solve_each
+from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.linalg import solve_each
 from aligngym.estimators.model import FilterModel, Scale
 
 

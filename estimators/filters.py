@@ -16,25 +16,11 @@ from aligngym.estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                    ImprovedMultipleFadingFactors, MeasurementAxisFading, MeasurementFadingFactor,
                                    MultipleFadingFactors, NoAdaptation, RobustAdaptive,
                                    SelectiveWeights, SingleFadingFactor)
+from aligngym.estimators.linalg import floor_eigenvalues, positive_definite, solve_each
 from aligngym.estimators.model import Observation, Transition, wrap_angle
 from aligngym.estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule, symmetric,
                               LinearizationRule, ReducedGaussHermiteRule,
                               SparseGridGaussHermiteRule, UnscentedRule)
-
-
-def _cholesky_ok(A: np.ndarray) -> np.ndarray:
-    """(B,) True where A[b] is finite and positive definite."""
-    ok = np.all(np.isfinite(A), axis=(-2, -1))
-    try:
-        np.linalg.cholesky(np.where(ok[:, None, None], A, np.eye(A.shape[-1])))
-        return ok
-    except np.linalg.LinAlgError:
-        for b in np.flatnonzero(ok):
-            try:
-                np.linalg.cholesky(A[b])
-            except np.linalg.LinAlgError:
-                ok[b] = False
-        return ok
 
 
 @dataclass
@@ -56,29 +42,6 @@ class FilterHealth:
     def flag(self, mask: np.ndarray, t: float, reason: str) -> None:
         for b in np.flatnonzero(mask & ~self.diverged):
             self.diverged[b], self.time[b], self.reason[b] = True, t, reason
-
-
-def _floor_eigenvalues(P: np.ndarray, relative: float = 1e-12) -> np.ndarray:
-    """P (B, n, n) with eigenvalues floored at relative x trace / n."""
-    vals, vecs = np.linalg.eigh(P)
-    floor = relative * np.maximum(np.trace(P, axis1=-2, axis2=-1), 0.0) / P.shape[-1]
-    vals = np.maximum(vals, np.maximum(floor, 1e-300)[:, None])
-    return (vecs * vals[:, None, :]) @ np.swapaxes(vecs, -1, -2)
-
-
-def solve_each(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A^-1 B for a batch (A (K, n, n), B (K, n, m)) and solved (K,): False where A is
-    singular to working precision (its rows NaN); one batched solve when none is."""
-    try:
-        return np.linalg.solve(A, B), np.ones(A.shape[0], bool)
-    except np.linalg.LinAlgError:
-        X, solved = np.full(np.shape(B), np.nan), np.zeros(A.shape[0], bool)
-        for b in range(A.shape[0]):
-            try:
-                X[b], solved[b] = np.linalg.solve(A[b], B[b]), True
-            except np.linalg.LinAlgError:
-                pass
-        return X, solved
 
 
 def _innovation(observation: Observation, z: np.ndarray, z_hat: np.ndarray,
@@ -123,7 +86,7 @@ class GaussianFilter:
         self.factors = np.zeros((batch, self.adaptation.n_factors))
         self.innovation = self.S = None
         self._pending = None
-        bad = ~_cholesky_ok(self.P)
+        bad = ~positive_definite(self.P)
         self.health.flag(bad, 0.0, "initial covariance not positive definite")
 
     @property
@@ -220,7 +183,7 @@ class GaussianFilter:
                 P_zz = np.where(cross_valid, P_zz, 0.0)
             HP = np.swapaxes(P_xz, -1, -2)
             S = P_zz + R
-        S_ok = _cholesky_ok(S)
+        S_ok = positive_definite(S)
         self.health.flag(~S_ok & live, t, "innovation covariance not positive definite")
         live = live & S_ok
         S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
@@ -240,7 +203,7 @@ class GaussianFilter:
         else:
             P_new = P_pred - K @ S @ np.swapaxes(K, -1, -2)
         P_new = symmetric(P_new)
-        P_ok = _cholesky_ok(P_new) & np.all(np.isfinite(x_new), axis=-1)
+        P_ok = positive_definite(P_new) & np.all(np.isfinite(x_new), axis=-1)
         self.health.flag(~P_ok & live, t, "covariance not positive definite or state NaN")
         live &= P_ok
         self.x = np.where(live[:, None], x_new, self.x)
@@ -255,7 +218,7 @@ class GaussianFilter:
         the update, which flag them."""
         if not self.rule.has_negative_weights:
             return P_pred
-        ok = _cholesky_ok(P_pred)
+        ok = positive_definite(P_pred)
         live = self.live
         bad = ~ok & live
         if not bad.any():
@@ -265,9 +228,9 @@ class GaussianFilter:
         fix = bad & finite
         if fix.any():
             repaired = P_pred.copy()
-            repaired[fix] = _floor_eigenvalues(P_pred[fix])
+            repaired[fix] = floor_eigenvalues(P_pred[fix])
             self.health.repairs[fix] += 1
-            still = ~_cholesky_ok(repaired) & fix
+            still = ~positive_definite(repaired) & fix
             self.health.flag(still, t, "predicted covariance not positive definite")
             return repaired
         return P_pred

@@ -34,7 +34,7 @@ def main() -> None:
     parser.add_argument("--timesteps", type=int, default=4096)
     parser.add_argument("--episode-length", type=float, default=60.0)
     args = parser.parse_args()
-    make = lambda: gym.make("aligngym/ShipSwayRotary-v0", estimator="kf",  # noqa: E731
+    make = lambda: gym.make("aligngym/ShipSwayRotary-v1", estimator="kf",  # noqa: E731
                             episode_length=args.episode_length, mistuning=MISTUNED,
                             cache_episodes=64)
     env = make()

@@ -8,7 +8,9 @@ Arms, each scored on the first ``--test`` episodes of the test split (seeds no a
   first ``--ce-episodes`` training episodes;
 - the base filter retuned at every epoch by a PPO policy (stable-baselines3) that acts on
   the env's observation, trained for ``--ppo-steps`` steps on the first ``--train``
-  training episodes (the native vector env, 16 slots).
+  training episodes (the native vector env, 16 slots); ``--ppo-seeds``, ``--normalize``
+  (VecNormalize) and ``--reward`` (the reward both agents train on; every arm is scored
+  on the default) vary it.
 
 All episodes come from one episode bank (built first, in parallel). For each arm: the
 mean reward per epoch and the RMS final heading error with 95 % bootstrap intervals over
@@ -16,7 +18,8 @@ the test episodes, the median final heading and the diverged count. Writes a JSO
 and prints a Markdown table. Needs the extra: pip install -e '.[agents]'.
 
 Run: python examples/study.py SCENARIO [--train 128] [--test 50] [--ppo-steps 200000]
-     [--episode-length S] [--bank DIR] [--out FILE.json]
+     [--ppo-seeds 1] [--normalize] [--reward attitude] [--episode-length S] [--bank DIR]
+     [--out FILE.json]
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from scipy import stats
 
 import aligngym  # noqa: F401  (registers the env ids)
 from aligngym.scenarios.bank import EpisodeBank, split_seeds
+from aligngym.scenarios.env import REWARDS
 from aligngym.scenarios.experiments import env_experiment
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 
@@ -90,10 +94,10 @@ def constant(action: np.ndarray, n: int):
 
 
 def cross_entropy(make, seeds: list[int], iterations: int, population: int,
-                  elite: int = 3) -> tuple[np.ndarray, list[float]]:
+                  reward: str, elite: int = 3) -> tuple[np.ndarray, list[float]]:
     """The constant action with the best mean training reward (one batched run of the
     training episodes per candidate)."""
-    env = make(len(seeds), "train")
+    env = make(len(seeds), "train", reward=reward)
     rng = np.random.default_rng(0)
     dim = env.single_action_space.shape[0]
     mean, std, history = np.zeros(dim), np.full(dim, 0.5), []
@@ -117,11 +121,11 @@ def sb3_vec_env(env: AlignmentVectorEnv):
         def __init__(self) -> None:
             super().__init__(env.num_envs, env.single_observation_space,
                              env.single_action_space)
-            self._seed = 0
 
         def reset(self):
-            obs, _ = env.reset(seed=self._seed)
-            self._seed = None
+            seeds = None if all(s is None for s in self._seeds) else self._seeds
+            obs, _ = env.reset(seed=seeds)             # PPO(seed=k) seeds slot i with k + i
+            self._reset_seeds()
             return obs
 
         def step_async(self, actions) -> None:
@@ -163,6 +167,11 @@ def main() -> None:
     parser.add_argument("--ce-iterations", type=int, default=4)
     parser.add_argument("--ce-population", type=int, default=8)
     parser.add_argument("--ppo-steps", type=int, default=200_000)
+    parser.add_argument("--ppo-seeds", type=int, default=1, help="PPO runs, seeds 0 ..")
+    parser.add_argument("--reward", default="attitude", choices=REWARDS,
+                        help="the reward the agents train on (scoring uses the default)")
+    parser.add_argument("--normalize", action="store_true",
+                        help="PPO on VecNormalize (running obs and return scaling)")
     parser.add_argument("--episode-length", type=float, default=600.0)
     parser.add_argument("--bank", default="bank")
     parser.add_argument("--workers", type=int, default=2)
@@ -195,28 +204,40 @@ def main() -> None:
     rows = [summarise("as tuned", f, tuned[f], tuned[base]) for f in filters]
     start = time.perf_counter()
     action, history = cross_entropy(make, train[:args.ce_episodes], args.ce_iterations,
-                                    args.ce_population)
+                                    args.ce_population, args.reward)
     env = make(len(test), "test")
-    rows.append(summarise("constant retune (CE)", base, score(
+    trained_on = f", {args.reward} reward" if args.reward != "attitude" else ""
+    rows.append(summarise("constant retune (CE)" + trained_on, base, score(
         env, test, constant(action, len(test))), tuned[base],
         {"action": action.round(3).tolist(), "train_reward": history,
          "wall_s": time.perf_counter() - start}))
     env.close()
     from stable_baselines3 import PPO
-    start = time.perf_counter()
-    vec = sb3_vec_env(make(SLOTS, "train", autoreset_mode="SameStep"))
-    model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, learning_rate=3e-4,
-                gamma=0.99, seed=0, verbose=0, device="cpu")
-    model.learn(total_timesteps=args.ppo_steps)
-    trained = time.perf_counter() - start
-    env = make(len(test), "test")
-    rows.append(summarise("PPO policy", base, score(
-        env, test, lambda obs: model.predict(obs, deterministic=True)[0]), tuned[base],
-        {"ppo_steps": args.ppo_steps, "wall_s": trained}))
-    env.close()
+    from stable_baselines3.common.vec_env import VecNormalize
+    for seed in range(args.ppo_seeds):
+        start = time.perf_counter()
+        vec = sb3_vec_env(make(SLOTS, "train", autoreset_mode="SameStep",
+                               reward=args.reward))
+        if args.normalize:                     # running mean/std of obs and of the return
+            vec = VecNormalize(vec, norm_obs=True, norm_reward=True, gamma=0.99)
+        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, learning_rate=3e-4,
+                    gamma=0.99, seed=seed, verbose=0, device="cpu")
+        model.learn(total_timesteps=args.ppo_steps)
+        trained = time.perf_counter() - start
+        prepare = vec.normalize_obs if args.normalize else (lambda obs: obs)  # frozen stats
+        env = make(len(test), "test")
+        arm = "PPO policy" + (", normalised" if args.normalize else "") + trained_on + (
+            f", seed {seed}" if args.ppo_seeds > 1 else "")
+        rows.append(summarise(arm, base, score(
+            env, test, lambda obs: model.predict(prepare(obs), deterministic=True)[0]),
+            tuned[base], {"ppo_steps": args.ppo_steps, "ppo_seed": seed,
+                          "normalize": args.normalize, "wall_s": trained}))
+        env.close()
+        vec.close()
     out = {"scenario": args.scenario, "experiment": name, "episode_length_s":
            args.episode_length, "train_episodes": args.train, "test_episodes": args.test,
-           "test_seeds": [test[0], test[-1]], "bank_s": bank_s,
+           "test_seeds": [test[0], test[-1]], "train_reward": args.reward,
+           "ppo_seeds": args.ppo_seeds, "normalize": args.normalize, "bank_s": bank_s,
            "wall_s": time.perf_counter() - clock, "rows": rows}
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))

@@ -60,7 +60,7 @@ def cross_entropy_search(env: gym.Env, seeds: list[int], iterations: int = 4,
 
 def main(episode_length: float = 120.0, train_seeds=(11, 12, 13), test_seeds=(21, 22, 23),
          iterations: int = 4, population: int = 8) -> dict:
-    env = gym.make("aligngym/ShipSwayRotary-v0", estimator="kf", episode_length=episode_length,
+    env = gym.make("aligngym/ShipSwayRotary-v1", estimator="kf", episode_length=episode_length,
                    mistuning=MISTUNED, cache_episodes=len(train_seeds) + len(test_seeds))
     action, history = cross_entropy_search(env, list(train_seeds), iterations, population)
     zero = np.zeros(env.action_space.shape, np.float32)

@@ -24,7 +24,7 @@ def experiment_names() -> tuple[str, ...]:
     return tuple(sorted(shipped)) + tuple(sorted(set(_REGISTERED) - set(shipped)))
 
 
-GENERIC_ENV_ID = "aligngym/Alignment-v0"
+GENERIC_ENV_ID = "aligngym/Alignment-v1"
 """The env id for any scenario file that names an experiment:
 ``gym.make(GENERIC_ENV_ID, scenario="path/to/my.toml", ...)``."""
 
@@ -52,5 +52,5 @@ def scenario_names() -> list[str]:
 
 
 def env_id(scenario: str) -> str:
-    """Gymnasium id of a scenario name: ship-sway-rotary -> aligngym/ShipSwayRotary-v0."""
-    return "aligngym/" + "".join(part.capitalize() for part in scenario.split("-")) + "-v0"
+    """Gymnasium id of a scenario name: ship-sway-rotary -> aligngym/ShipSwayRotary-v1."""
+    return "aligngym/" + "".join(part.capitalize() for part in scenario.split("-")) + "-v1"

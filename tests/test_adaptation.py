@@ -208,3 +208,17 @@ def test_gated_strong_tracking_skips_an_outlier_and_fades_at_a_change_of_state()
     assert change[:3] == [1.0, 1.0, 1.0] and change[3] > 10.0
     with pytest.raises(ValueError, match="outlier_probability must be in"):
         SingleFadingFactor(outlier_probability=1.0)
+
+
+def test_the_outlier_gate_leaves_a_singular_member_to_its_filter():
+    """A batch of two: episode 1's innovation covariance is singular (the filter flags
+    it). The gate neither raises nor flags it, and episode 0's 10-sigma innovation is
+    still gated as alone."""
+    policy = SingleFadingFactor(outlier_probability=0.999)
+    policy.reset(2)
+    S = np.array([[[2.0]], [[0.0]]])
+    e = np.array([[10.0 * np.sqrt(2.0)], [1.0]])
+    zeros = np.zeros((2, 1, 1))
+    ctx = AdaptationContext(innovation=e, valid=np.ones((2, 1), bool), S=S, P_xz=zeros,
+                            PhiPPhi=zeros, Q=zeros, R=zeros, H=zeros)
+    np.testing.assert_array_equal(policy._outliers(ctx, ctx.valid), [True, False])

@@ -147,7 +147,7 @@ def test_scenarios_and_experiments_load_no_physics():
             "from aligngym.scenarios.experiments import experiment_class; "
             "[load_scenario(n) for n in scenario_names()]; "
             "[experiment_class(n) for n in experiment_names()]; "
-            "assert 'aligngym/Alignment-v0' in gymnasium.registry; "
+            "assert 'aligngym/Alignment-v1' in gymnasium.registry; "
             f"print(sorted(m for m in {heavy!r} if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout

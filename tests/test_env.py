@@ -15,16 +15,16 @@ from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.env import OBS_SIZE
 from aligngym.scenarios.experiments.paper003 import run_campaign
 
-SHIP_ID = "aligngym/ShipSwayRotary-v0"
+SHIP_ID = "aligngym/ShipSwayRotary-v1"
 SHIP_QUICK = {"coarse_duration": 20.0, "t_k1": 8.0, "t_k2": 20.0}
 # The env's contract is under test, not the alignment: a 20 s coarse stage (the env's
 # settings) where the experiments take 60-120 s, and 20 s episodes.
-QUICK = {SHIP_ID: SHIP_QUICK, "aligngym/ShipWavesRotary-v0": SHIP_QUICK,
-         "aligngym/RingRoadOdometer-v0": {"coarse_duration": 20.0},
-         "aligngym/Figure8Gps-v0": {"coarse_duration": 20.0},
-         "aligngym/UsvMemsSwing-v0": {"coarse_duration": 20.0},
-         "aligngym/UsvMemsWaves-v0": {"coarse_duration": 20.0},
-         "aligngym/StaticLargeAzimuth-v0": {}}
+QUICK = {SHIP_ID: SHIP_QUICK, "aligngym/ShipWavesRotary-v1": SHIP_QUICK,
+         "aligngym/RingRoadOdometer-v1": {"coarse_duration": 20.0},
+         "aligngym/Figure8Gps-v1": {"coarse_duration": 20.0},
+         "aligngym/UsvMemsSwing-v1": {"coarse_duration": 20.0},
+         "aligngym/UsvMemsWaves-v1": {"coarse_duration": 20.0},
+         "aligngym/StaticLargeAzimuth-v1": {}}
 SHORT = {"episode_length": 20.0, "settings": SHIP_QUICK}
 
 
@@ -45,9 +45,9 @@ def test_check_env(env_id):
 
 
 # An adaptive filter of each env's paper (the fading factors need paper 003's H).
-ADAPTIVE = {"aligngym/Figure8Gps-v0": "swakf", "aligngym/RingRoadOdometer-v0": "sgkf",
-            "aligngym/UsvMemsSwing-v0": "stukf",   # 004 has no adaptive filter
-            "aligngym/UsvMemsWaves-v0": "stukf"}
+ADAPTIVE = {"aligngym/Figure8Gps-v1": "swakf", "aligngym/RingRoadOdometer-v1": "sgkf",
+            "aligngym/UsvMemsSwing-v1": "stukf",   # 004 has no adaptive filter
+            "aligngym/UsvMemsWaves-v1": "stukf"}
 
 
 def rollout(env_id, seed, steps=12, **kwargs):
@@ -230,8 +230,8 @@ def test_agent_improves_a_mistuned_filter():
     assert out["agent_test"] - out["zero_test"] > 1.0
 
 
-@pytest.mark.parametrize("env_id, measured", [("aligngym/Figure8Gps-v0", 7),
-                                              ("aligngym/UsvMemsSwing-v0", 6), (SHIP_ID, 3)])
+@pytest.mark.parametrize("env_id, measured", [("aligngym/Figure8Gps-v1", 7),
+                                              ("aligngym/UsvMemsSwing-v1", 6), (SHIP_ID, 3)])
 def test_observation_holds_the_whole_innovation(env_id, measured):
     """Every component of the measurement's innovation, normalised by its predicted sigma
     (001: position, velocity and the GPS heading, which is missing while the car stands:
@@ -247,7 +247,7 @@ def test_observation_holds_the_whole_innovation(env_id, measured):
     assert e.size == measured
     np.testing.assert_array_equal(obs[INNOVATIONS][:measured], expected.astype(np.float32))
     assert not obs[INNOVATIONS][measured:].any()
-    if env_id == "aligngym/Figure8Gps-v0":   # standing still: no GPS heading
+    if env_id == "aligngym/Figure8Gps-v1":   # standing still: no GPS heading
         assert not filt.valid[0, 6] and obs[6] == 0.0 and np.all(obs[:6] != 0.0)
     env.close()
 
@@ -279,3 +279,11 @@ def test_evaluate_on_the_test_split():
     rows = scenarios.evaluate(SHIP_ID, "kf", episodes=2, split="test", **SHORT)
     assert [r["seed"] for r in rows] == split_seeds("test", 2)
     assert all(np.isfinite(r["final_phi_U_arcmin"]) for r in rows)
+
+
+@pytest.mark.filterwarnings("ignore:.*is out of date")
+def test_version_0_ids_point_to_version_1():
+    """The observation changed from 16 to 20 numbers with -v1: a -v0 id is refused with
+    gymnasium's DeprecatedEnv, which names the new version."""
+    with pytest.raises(gym.error.DeprecatedEnv, match="ShipSwayRotary-v1"):
+        gym.make("aligngym/ShipSwayRotary-v0")

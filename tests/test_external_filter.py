@@ -44,8 +44,8 @@ def test_a_user_rule_equals_the_catalogues_in_a_campaign(user_filter):
 def test_a_user_rule_runs_in_the_env_and_evaluate(user_filter):
     from aligngym.scenarios.env import evaluate
     kwargs = {"episode_length": 60.0}
-    ours = evaluate("aligngym/ShipSwayRotary-v0", user_filter, 1, seed=2, **kwargs)
-    theirs = evaluate("aligngym/ShipSwayRotary-v0", "ckf", 1, seed=2, **kwargs)
+    ours = evaluate("aligngym/ShipSwayRotary-v1", user_filter, 1, seed=2, **kwargs)
+    theirs = evaluate("aligngym/ShipSwayRotary-v1", "ckf", 1, seed=2, **kwargs)
     assert not ours[0]["diverged"]
     for a, b in zip(ours, theirs):
         for key, value in a.items():

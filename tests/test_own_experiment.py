@@ -71,7 +71,7 @@ def test_a_registered_experiment_runs_everywhere(registered, tmp_path, capsys):
     assert regress(["quick-table"], update=True, directory=tmp_path)[0]
     passed, report = regress(["quick-table"], directory=tmp_path)
     assert passed and "quick-table: " in report
-    env = gym.make("aligngym/Alignment-v0", scenario=registered, estimator="ekf",
+    env = gym.make("aligngym/Alignment-v1", scenario=registered, estimator="ekf",
                    episode_length=10.0)
     env.reset(seed=1)
     assert isinstance(env.unwrapped.experiment, QuickTableExperiment)

@@ -249,7 +249,7 @@ def test_resume_never_drops_finished_filters(tmp_path, capsys):
 # --- 6. the env's and the API's arguments -------------------------------------------------
 @pytest.fixture(scope="module")
 def static_env():
-    env = gym.make("aligngym/StaticLargeAzimuth-v0", estimator="ekf", episode_length=5.0)
+    env = gym.make("aligngym/StaticLargeAzimuth-v1", estimator="ekf", episode_length=5.0)
     env.reset(seed=1)
     yield env
     env.close()
@@ -338,9 +338,9 @@ def test_a_filter_the_model_cannot_run_is_refused_before_any_simulation(monkeypa
     assert line.startswith("aligngym: error: filter 'imakf' (improved multiple fading")
     assert "which paper001's model does not give; filters that run here:" in line
     with pytest.raises(ConfigError, match="filter 'imakf'"):
-        gym.make("aligngym/Figure8Gps-v0", estimator="imakf")
+        gym.make("aligngym/Figure8Gps-v1", estimator="imakf")
     with pytest.raises(ConfigError, match="filter 'makf-r'"):
-        aligngym.scenarios.evaluate("aligngym/UsvMemsSwing-v0", "makf-r", episodes=1)
+        aligngym.scenarios.evaluate("aligngym/UsvMemsSwing-v1", "makf-r", episodes=1)
     from aligngym.testing import assert_alignment
     with pytest.raises(ConfigError, match="filter 'swakf'"):
         assert_alignment("swakf", "ship-sway-rotary", episodes=1)

@@ -13,7 +13,7 @@ from aligngym.scenarios.env import ELAPSED, OBS_SIZE
 from aligngym.scenarios.experiments import experiment_for
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 
-SHIP_ID = "aligngym/ShipSwayRotary-v0"
+SHIP_ID = "aligngym/ShipSwayRotary-v1"
 # A short coarse stage (the env's settings): 20 s of physics before the fine start.
 QUICK = {"episode_length": 12.0, "estimator": "imakf",
          "settings": {"coarse_duration": 20.0, "t_k1": 8.0, "t_k2": 20.0}}
