@@ -86,6 +86,8 @@ def summarise(arm: str, filter_name: str, result: dict, reference: dict,
             "diverged": int(result["diverged"].sum()), "episodes": int(result["reward"].size),
             "reward_gain_vs_base": interval(result["reward"] - reference["reward"],
                                             lambda x, axis=-1: np.mean(x, axis=axis)),
+            "per_episode": {"reward": result["reward"].round(6).tolist(),  # for other pairings
+                            "heading_arcmin": result["heading"].round(6).tolist()},
             **(extra or {})}
 
 

@@ -521,3 +521,19 @@ def test_moving_start_aligns_to_arcminutes(tmp_path):
     with pytest.raises(ConfigError, match=r"window \[250, 290\] s must lie in the motion"):
         Paper001Experiment(scenario=path, coarse="moving", coarse_start=250.0,
                            coarse_duration=40.0).scenario_config()
+
+
+def test_paper_setup_adds_only_errors_that_no_filter_believes():
+    """--setup paper (the paper's reason, 001 sec. 3): the same scenario as the default but
+    for the gyros' uncalibrated misalignment (300") and scale factor (300 ppm), which the
+    truth applies and the filters' tuning (the datasheet's bias and noise) leaves out."""
+    from aligngym.scenarios.experiments import experiment
+    from aligngym.models.units import arcsec
+    default, paper = experiment("paper001"), experiment("paper001", "paper")
+    base, variant = load_scenario(default.scenario), load_scenario(paper.scenario)
+    assert variant.imu.gyro.misalignment_sigma == pytest.approx(300 * arcsec)
+    assert variant.imu.gyro.scale_factor_sigma == pytest.approx(300e-6)
+    assert base.imu.gyro.misalignment_sigma == 0.0 and base.imu.gyro.scale_factor_sigma == 0.0
+    assert replace(variant.imu, gyro=base.imu.gyro) == base.imu
+    assert variant.motion == base.motion and variant.gps == base.gps
+    assert paper.tuning(variant) == default.tuning(base)
