@@ -29,7 +29,7 @@ import numpy as np
 
 from aligngym.models.scene import (DRESSING, INSTRUMENTS, VISUAL, fmt, geom, imu_axes, mesh_asset,
                           quad_inset, resample_closed, ribbon, slab_mesh, torus_mesh)
-from aligngym.models.world import IMU_SENSORS_MJCF, DiscreteRun, GimbalRates
+from aligngym.models.world import IMU_SENSORS_MJCF, DiscreteRun, GimbalRates, skip_sensors
 
 G_LATERAL_MAX = 0.4 * 9.81
 """Largest steady lateral acceleration the controller is allowed to ask, m/s^2."""
@@ -503,6 +503,7 @@ class CarWorld:
         self.model = mujoco.MjModel.from_xml_string(xml)
         if "road" in assets:
             self.model.hfield_data[:] = assets["road"].ravel()
+        skip_sensors(self.model)
         self.data = mujoco.MjData(self.model)
         self.control_period = control_period
         m = self.model

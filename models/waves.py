@@ -21,7 +21,7 @@ import numpy as np
 from aligngym.models.indexer import IndexerMotion, IndexerSpec
 from aligngym.models.ship import REFERENCE_HULL, ship_mjcf
 from aligngym.models.units import deg
-from aligngym.models.world import DiscreteRun, GimbalRates, stalled
+from aligngym.models.world import DiscreteRun, GimbalRates, skip_sensors, stalled
 
 RHO_G = 1025.0 * 9.81
 WAVE_TIMESTEP = 0.002
@@ -204,6 +204,7 @@ class WaveShipWorld:
             '<option timestep="0.005" integrator="implicitfast"/>',
             f'<option timestep="{timestep:g}" integrator="implicitfast"/>')
         self.model = mujoco.MjModel.from_xml_string(xml)
+        skip_sensors(self.model)
         self.data = mujoco.MjData(self.model)
         m = self.model
         self._hull = m.body("carrier").id
@@ -230,6 +231,10 @@ class WaveShipWorld:
         self._c_yaw = 2 * inertia[2] * (2 * math.pi / 10)
         self._mass = mass
         self._gravity = -float(m.opt.gravity[2])
+        # Views into MjData's buffers, read every physics step by the wrench.
+        self._hull_xmat = self.data.xmat[self._hull]
+        self._hull_xipos = self.data.xipos[self._hull]
+        self._hull_qvel = self.data.qvel[0:6]
 
     def _hull_inertia(self) -> np.ndarray:
         """Principal moments (3,) kg m^2 of the whole ship about its centre of mass."""
@@ -322,13 +327,12 @@ class WaveShipWorld:
         state whose kinematics MuJoCo has computed (``mj_step1`` or ``mj_forward``) and
         the sea's elevation eta (m) and slope (2,) at the hull. Scalar arithmetic: it
         runs every physics step."""
-        d = self.data
-        c00, c01, c02, c10, c11, c12, c20, c21, c22 = d.xmat[self._hull].tolist()  # hull to plane
+        c00, c01, c02, c10, c11, c12, c20, c21, c22 = self._hull_xmat.tolist()  # hull to plane
         pitch = math.asin(max(-1.0, min(1.0, c21)))   # PSINS Euler angles
         roll = math.atan2(-c20, c22)
         yaw = math.atan2(-c01, c11)
-        centre = d.xipos[self._hull].tolist()
-        vx, vy, vz, wx, wy, wz = d.qvel[0:6].tolist()
+        centre = self._hull_xipos.tolist()
+        vx, vy, vz, wx, wy, wz = self._hull_qvel.tolist()
         k, c = self._k, self._c
         # Wave slopes seen along the body's right (x) and forward (y) axes.
         slope_right = slope[0] * c00 + slope[1] * c10

@@ -196,6 +196,16 @@ IMU_SENSORS_MJCF = """
   </sensor>
 """
 
+def skip_sensors(model) -> None:
+    """Stop MuJoCo computing the declared sensors at each step (``mjDSBL_SENSOR``). The
+    dynamic worlds record qpos and qvel and derive the IMU from them
+    (``discrete_imu``), so their sensor stage, the accelerometer's post-constraint
+    pass above all, is wasted: skipping it leaves the motion bit for bit the same and
+    saves about a fifth of the car's step."""
+    import mujoco
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR.value
+
+
 # Optional sensors of a GNSS antenna on site "antenna" (read where the MJCF declares them).
 ANTENNA_SENSORS_MJCF = """
   <sensor>
