@@ -196,7 +196,8 @@ IMU_SENSORS_MJCF = """
   </sensor>
 """
 
-def skip_sensors(model) -> None:
+
+def skip_sensors(model: "mujoco.MjModel") -> None:
     """Stop MuJoCo computing the declared sensors at each step (``mjDSBL_SENSOR``). The
     dynamic worlds record qpos and qvel and derive the IMU from them
     (``discrete_imu``), so their sensor stage, the accelerometer's post-constraint

@@ -28,7 +28,6 @@ Runtime: about 10 min for 3 episodes (Octave: ~95 s per episode and start, of wh
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import subprocess
 import sys
@@ -39,29 +38,13 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from psins_setup import find_octave, find_psins, psinsenvi_shim
+
 HERE = Path(__file__).resolve().parent
-DEFAULT_GIT = "/work/.mirror/WangShanpeng+PSINS/repo"
+PSINS_FILES = ("base/kf/ckf.m",)
+"""What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
 TIMES = (0, 1, 2, 5, 10, 30, 60, 120, 300)
-
-
-def find_psins(arg: str | None, tmp: Path) -> Path | None:
-    """A PSINS work tree holding base/kf/ckf.m, or None."""
-    tree = arg or os.environ.get("PSINS_DIR")
-    if tree:
-        return Path(tree) if (Path(tree) / "base" / "kf" / "ckf.m").is_file() else None
-    git_dir = os.environ.get("PSINS_GIT", DEFAULT_GIT)
-    if not (Path(git_dir).is_dir() and shutil.which("git")):
-        return None
-    out = tmp / "psins"
-    out.mkdir(exist_ok=True)
-    # base/ only: the snapshot lacks some large data blobs elsewhere in the tree.
-    archive = subprocess.run(["git", f"--git-dir={git_dir}", "archive", "HEAD", "base"],
-                             capture_output=True)
-    if archive.returncode != 0:
-        return None
-    subprocess.run(["tar", "-x", "-C", str(out)], input=archive.stdout, check=True)
-    return out if (out / "base" / "kf" / "ckf.m").is_file() else None
 
 
 def export_runs(exp, episodes, work: Path) -> list[tuple[str, int, Path]]:
@@ -148,25 +131,20 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", action="store_true", help="keep the temporary directory (PSINS extract, stub, default work dir)")
     args = ap.parse_args(argv)
 
-    octave = shutil.which("octave") or shutil.which("octave-cli")
+    octave = find_octave()
     if octave is None:
         print("ckf_000: octave not found; skipped")
         return 0
     tmp = Path(tempfile.mkdtemp(prefix="ckf000_"))
     try:
-        psins = find_psins(args.psins, tmp)
+        psins = find_psins(args.psins, tmp, PSINS_FILES)
         if psins is None:
             print("ckf_000: PSINS snapshot not found (--psins, $PSINS_DIR or $PSINS_GIT); "
                   "skipped")
             return 0
         work = Path(args.work) if args.work else tmp / "work"
         work.mkdir(parents=True, exist_ok=True)
-        shim = tmp / "shim"
-        shim.mkdir(exist_ok=True)
-        # PSINS's glvf calls psinsenvi, a file its installer generates: a stub.
-        (shim / "psinsenvi.m").write_text(
-            "function [rpath, dpath, mytestflag] = psinsenvi()\n"
-            "rpath = ''; dpath = ''; mytestflag = 0;\nend\n")
+        shim = psinsenvi_shim(tmp)
 
         from aligngym.scenarios.campaign.episodes import episode_seeds
         from aligngym.scenarios.campaign.executors import prepare_all

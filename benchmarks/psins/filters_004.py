@@ -37,7 +37,6 @@ native STEKF 4.5 min); prefix it with `nice -n 19`.
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import subprocess
 import sys
@@ -48,34 +47,17 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from psins_setup import find_octave, find_psins, psinsenvi_shim
+
 HERE = Path(__file__).resolve().parent
-DEFAULT_GIT = "/work/.mirror/WangShanpeng+PSINS/repo"
+PSINS_FILES = ("base/kf/ukf.m", "base/base2/etmST.m")
+"""What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
 TIMES = (60.0, 120.0, 300.0, 600.0, 1000.0, 1500.0, 2000.0)
 """Scenario times (s) of the per-episode table (the fine stage starts at 60 s)."""
 OURS = ("stekf", "ukf-3n", "ekf")
 PSINS_FILTERS = ("stekf", "ukf-3n", "ekf", "stekf-native")
 """PSINS runs; each but stekf-native has its counterpart of the same name in OURS."""
-
-
-def find_psins(arg: str | None, tmp: Path) -> Path | None:
-    """A PSINS work tree holding base/kf/ukf.m and base/base2/etmST.m, or None."""
-    needed = (Path("base") / "kf" / "ukf.m", Path("base") / "base2" / "etmST.m")
-    tree = arg or os.environ.get("PSINS_DIR")
-    if tree:
-        return Path(tree) if all((Path(tree) / p).is_file() for p in needed) else None
-    git_dir = os.environ.get("PSINS_GIT", DEFAULT_GIT)
-    if not (Path(git_dir).is_dir() and shutil.which("git")):
-        return None
-    out = tmp / "psins"
-    out.mkdir(exist_ok=True)
-    # base/ only: the snapshot lacks some large data blobs elsewhere in the tree.
-    archive = subprocess.run(["git", f"--git-dir={git_dir}", "archive", "HEAD", "base"],
-                             capture_output=True)
-    if archive.returncode != 0:
-        return None
-    subprocess.run(["tar", "-x", "-C", str(out)], input=archive.stdout, check=True)
-    return out if all((out / p).is_file() for p in needed) else None
 
 
 def export_runs(exp, episodes, start_error: np.ndarray, work: Path) -> list[Path]:
@@ -168,25 +150,20 @@ def main(argv=None) -> int:
                     help="keep the temporary directory (PSINS extract, stub, default work dir)")
     args = ap.parse_args(argv)
 
-    octave = shutil.which("octave") or shutil.which("octave-cli")
+    octave = find_octave()
     if octave is None:
         print("filters_004: octave not found; skipped")
         return 0
     tmp = Path(tempfile.mkdtemp(prefix="filters004_"))
     try:
-        psins = find_psins(args.psins, tmp)
+        psins = find_psins(args.psins, tmp, PSINS_FILES)
         if psins is None:
             print("filters_004: PSINS snapshot not found (--psins, $PSINS_DIR or "
                   "$PSINS_GIT); skipped")
             return 0
         work = Path(args.work) if args.work else tmp / "work"
         work.mkdir(parents=True, exist_ok=True)
-        shim = tmp / "shim"
-        shim.mkdir(exist_ok=True)
-        # PSINS's glvf calls psinsenvi, a file its installer generates: a stub.
-        (shim / "psinsenvi.m").write_text(
-            "function [rpath, dpath, mytestflag] = psinsenvi()\n"
-            "rpath = ''; dpath = ''; mytestflag = 0;\nend\n")
+        shim = psinsenvi_shim(tmp)
 
         from aligngym.scenarios.campaign.episodes import episode_seeds
         from aligngym.scenarios.campaign.executors import prepare_all

@@ -58,7 +58,6 @@ s an episode; ~45 s with --as-lckf discretisation); prefix it with `nice -n 10`.
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import subprocess
 import sys
@@ -69,34 +68,17 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from psins_setup import find_octave, find_psins, psinsenvi_shim
+
 HERE = Path(__file__).resolve().parent
-DEFAULT_GIT = "/work/.mirror/WangShanpeng+PSINS/repo"
+PSINS_FILES = ("base/kf/kfupdate.m",)
+"""What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
 TIMES = (0, 1, 2, 5, 10, 30, 60, 120, 200, 210, 215, 220, 240, 300, 400, 500, 600)
 """Epochs (s since the fine start, 60 s into the run) to print; the car starts at 210."""
 START = "coarse"
 AS_LCKF = ("rate", "discretisation", "gravity")
 """What ``--as-lckf`` can make PSINS's side do as lckf does (see the module docstring)."""
-
-
-def find_psins(arg: str | None, tmp: Path) -> Path | None:
-    """A PSINS work tree holding base/kf/kfupdate.m, or None."""
-    tree = arg or os.environ.get("PSINS_DIR")
-    probe = Path("base") / "kf" / "kfupdate.m"
-    if tree:
-        return Path(tree) if (Path(tree) / probe).is_file() else None
-    git_dir = os.environ.get("PSINS_GIT", DEFAULT_GIT)
-    if not (Path(git_dir).is_dir() and shutil.which("git")):
-        return None
-    out = tmp / "psins"
-    out.mkdir(exist_ok=True)
-    # base/ only: the snapshot lacks some large data blobs elsewhere in the tree.
-    archive = subprocess.run(["git", f"--git-dir={git_dir}", "archive", "HEAD", "base"],
-                             capture_output=True)
-    if archive.returncode != 0:
-        return None
-    subprocess.run(["tar", "-x", "-C", str(out)], input=archive.stdout, check=True)
-    return out if (out / probe).is_file() else None
 
 
 def psins_map(lat: np.ndarray, lon: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -220,25 +202,20 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--as-lckf: unknown {sorted(as_lckf - set(AS_LCKF))}; valid: "
                  + ", ".join(AS_LCKF))
 
-    octave = shutil.which("octave") or shutil.which("octave-cli")
+    octave = find_octave()
     if octave is None:
         print("lckf_001: octave not found; skipped")
         return 0
     tmp = Path(tempfile.mkdtemp(prefix="lckf001_"))
     try:
-        psins = find_psins(args.psins, tmp)
+        psins = find_psins(args.psins, tmp, PSINS_FILES)
         if psins is None:
             print("lckf_001: PSINS snapshot not found (--psins, $PSINS_DIR or $PSINS_GIT); "
                   "skipped")
             return 0
         work = Path(args.work) if args.work else tmp / "work"
         work.mkdir(parents=True, exist_ok=True)
-        shim = tmp / "shim"
-        shim.mkdir(exist_ok=True)
-        # PSINS's glvf calls psinsenvi, a file its installer generates: a stub.
-        (shim / "psinsenvi.m").write_text(
-            "function [rpath, dpath, mytestflag] = psinsenvi()\n"
-            "rpath = ''; dpath = ''; mytestflag = 0;\nend\n")
+        shim = psinsenvi_shim(tmp)
 
         from aligngym.scenarios.campaign.episodes import episode_seeds
         from aligngym.scenarios.campaign.executors import prepare_all
