@@ -201,8 +201,9 @@ ISSUE27_CKF = ("the cubature method's, checked against an independent implementa
                "at sigma 0.58' from 30 deg). Its points sit at sqrt(18) sigma = 127 deg of "
                "heading, where the third-degree rule gets the moments of sin and cos wrong "
                "(E[sin^2] 0.035 against 0.211): the first update moves the heading 75 deg "
-               "where 32 are due. Here final NEES 9e3 (15 deg) and 2e5 (30 deg, flagged "
-               "diverged) on ideal data")
+               "where 32 are due. Here on ideal data the final NEES is 1.1e4 (15.3 deg) and "
+               "4.3e5 (30 deg), flagged diverged from both; the paper's sensors leave "
+               "18-27' of level (NEES 1.5e3-2.4e3)")
 EKF_000 = ("the EKF's linearisation in phi_U, the filter's own limit: on this ideal drive "
            "from 2, 5, 10, 15.3, 20, 30 deg its final NEES is 2.1, 2.2, 2.5, 16.5, 167, 4244 "
            "(30 deg: level N 0.38' at sigma 0.024'; 15.3 deg: heading 3.9' in the last "
@@ -256,6 +257,33 @@ def test_000_ideal_data_every_filter_reaches_zero(car000, runs000, name, start):
     assert np.all(worst[:2] < LEVEL_000), info
     assert np.all(np.abs(err) < 3 * sigma), info
     assert nees < ideal_limit(9), info
+
+
+STATED_000 = {
+    ("ckf", "coarse"): (150.0, 1.5), ("ckf", "large"): (1000.0, 10.0),
+    ("ekf", "coarse"): (5.0, 0.1), ("ekf", "large"): (25.0, 0.5)}
+"""Bounds (heading, level; arcmin, max |error| over the last 60 s on ideal data) of the
+filters whose method cannot reach 3' / 0.1' there, about 1.3x what they leave (ckf 112'
+/ 1.0' from 15.3 deg, 865' / 7.7' from 30 deg; ekf 3.9' / 0.05' and 19' / 0.38')."""
+
+
+@pytest.mark.parametrize("name, start", list(STATED_000))
+def test_000_ideal_data_method_limited_filters_stay_within_their_stated_bound(
+        car000, runs000, name, start):
+    """The same error-free drive, for the filters that fail the physics bound above for
+    a reason of their method, shown rather than assumed: ckf (points at sqrt(18) sigma =
+    127 deg of heading, where the third-degree cubature gets sin and cos wrong; PSINS's
+    ckf on the same model gives the same heading epoch by epoch on the experiment's own
+    episodes, benchmarks/psins/ckf_000.py) and ekf (its linearisation in phi_U: final NEES 2.1-2.5
+    from 2-10 deg, 16.5 from 15.3, 4244 from 30 deg, where rdghkf on the same model ends
+    at 0.9-1.0' from every start). A worse filter fails here; a better one fails the
+    strict xfail above, so either change is seen."""
+    heading, level = STATED_000[name, start]
+    b = car000.labels.index(f"ideal, {start}")
+    worst, _ = last(runs000(name), b)
+    info = f"{name} {start}: last 60 s max |error| {arcmin_text(worst)}'"
+    assert worst[2] < heading * arcmin, info
+    assert np.all(worst[:2] < level * arcmin), info
 
 
 @pytest.mark.parametrize("name", [
@@ -384,6 +412,64 @@ def test_001_ideal_data_every_filter_reaches_zero(car001, runs001, name):
     assert np.all(worst[:, :2] < LEVEL_001), info
     assert np.all(np.abs(err) < 3 * sigma), info
     assert np.all(nees < ideal_limit(15)), info
+
+
+STATED_001 = {"rakf": (3.5, 0.8), "swakf": (20.0, 4.0)}
+"""Bounds (heading, level; arcmin, max |error| over the last 60 s on ideal data) of the
+heading-aided filters with the paper's GPS heading sigma (eq. 4), about 1.3x what they
+leave (rakf 2.7' / 0.61', swakf 16.3' / 3.1')."""
+
+
+@pytest.mark.parametrize("name", list(STATED_001))
+def test_001_ideal_data_heading_aided_filters_stay_within_their_stated_bound(
+        car001, runs001, name):
+    """The same error-free drive for the filters that fail the physics bound above, for
+    a stated reason of the paper's heading observation: the GPS heading is the antenna's
+    track, off the body heading by the car's sideslip (0.36 deg in the loops, measured in
+    MuJoCo), while eq. 4's sigma (sigma_v / |v_h|, 0.07 deg) ignores it, so the
+    constraint pulls the heading onto the track; swakf's selective weights pull hardest.
+    With that offset in the sigma (``--heading-sigma sideslip``) both are consistent on
+    these data (the test below). A worse filter fails here, a better one the strict xfail
+    above."""
+    heading, level = STATED_001[name]
+    b = np.arange(car001.real, len(car001.episodes))
+    worst, _ = last(runs001(name), b)
+    info = f"{name}: last 60 s max |error| {arcmin_text(worst)}'"
+    assert np.all(worst[:, 2] < heading * arcmin), info
+    assert np.all(worst[:, :2] < level * arcmin), info
+
+
+@pytest.fixture(scope="module")
+def runs001_sideslip(car001):
+    return Runs(car001, replace(car001.exp, heading_sigma="sideslip"))
+
+
+@pytest.mark.parametrize("name, heading", [("rakf", 1.5), ("swakf", 3.5)])
+def test_001_sideslip_sigma_makes_the_heading_aided_filters_consistent(
+        car001, runs001_sideslip, name, heading):
+    """``--heading-sigma sideslip`` (issue 27 item 3): eq. 4's sigma plus the kinematic
+    sideslip (antenna lever arm x the INS's yaw rate / the GPS speed, in quadrature). On
+    the ideal drive from the paper's three starts: the heading within ``heading`` arcmin
+    over the last 60 s (rakf 1.07', swakf 2.8' measured: the offset is weighed, not
+    removed), inside 3 sigma at the end, NEES (15) below its 97.5 % point (4.2 and 7.2
+    measured, against 40 and 457 with eq. 4's sigma); rakf's mean final NEES on the
+    paper's sensors in its band (12.5 on seeds 0-2, 44 with eq. 4); swakf's stays out of
+    it (34.6: its selective weights claim more than they know), checked as such."""
+    run = runs001_sideslip(name)
+    b = np.arange(car001.real, len(car001.episodes))
+    worst, nees = last(run, b)
+    err, sigma = run.error_n[b, -1], run.result.sigma_n[b, -1]
+    n = car001.real
+    real = run.nees[:n, -1]
+    lo, hi = nees_band(15, n)
+    info = (f"{name}: last 60 s max |error| {arcmin_text(worst)}', final error "
+            f"{arcmin_text(err)}' sigma {arcmin_text(sigma)}', NEES max {np.round(nees, 1)}; "
+            f"paper's sensors NEES {np.round(real, 1)} band {lo:.2f}-{hi:.2f}")
+    assert not run.diverged.any(), info
+    assert np.all(worst[:, 2] < heading * arcmin), info
+    assert np.all(np.abs(err) < 3 * sigma), info
+    assert np.all(nees < ideal_limit(15)), info
+    assert (lo < real.mean() < hi) == (name == "rakf"), info
 
 
 @pytest.mark.parametrize("name", [

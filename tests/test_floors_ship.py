@@ -133,6 +133,24 @@ def test_003_error_free_sensors_under_the_sway_leave_no_systematic_error(ship, n
                                              + show(run.error, run.sigma))
 
 
+@pytest.mark.parametrize("name", EXP3.default_filters)
+def test_003_error_free_sensors_under_the_sway_stay_within_the_paper_models_bound(ship,
+                                                                                  name):
+    """The same error-free sway, against the stated bound of the paper's own model (its
+    dV/phi block -[g^i x], the finding above): every episode within 3 sigma per axis,
+    the 4-episode mean within 0.5 sigma on E and U, and phi_N's systematic error below
+    1.6 sigma and 0.005' (measured -1.30 sigma, -0.0034' to -0.0041' per episode, the
+    same for all four filters). A larger rectification fails here; its removal fails the
+    strict xfail above."""
+    run = ship.runs[name]["ideal"]
+    z = run.error / run.sigma
+    info = f"mean error / sigma {z.mean(0)}; " + show(run.error, run.sigma)
+    assert np.all(np.abs(z) < 3.0), info
+    assert np.all(np.abs(z.mean(0)[[0, 2]]) < 0.5), info
+    assert abs(z.mean(0)[1]) < 1.6, info
+    assert np.all(np.abs(run.error[:, 1]) < 0.005 * arcmin), info
+
+
 def unmodulated_floor(episode) -> np.ndarray:
     """phi E, N, U (rad) that the episode's drawn biases would leave on a still base
     without the rotation, at the last epoch's attitude (biases rotated to n)."""
@@ -220,6 +238,32 @@ def test_004_error_free_data_from_the_largest_start_end_inside_one_sigma(boat, n
     run = boat.runs[name]["ideal"]
     assert not boat.runs[name]["diverged"].any()
     assert np.all(np.abs(run.error) < run.sigma), show(run.error, run.sigma)
+
+
+STATED_004 = {"stukf": (2.0, 1.0), "stekf": (18.0, 4.0)}
+"""Bounds, in units of the filter's own final sigma (heading, level), of the ST filters'
+large-start transient on error-free data at 600 s, about 1.2x what they leave: stukf
+1.7 sigma / 0.53 sigma (13' / -50' heading, sigma 29.5'), stekf 16.5 sigma / 3.8 sigma
+(460' / -398' heading, sigma 28'; 2.0' level, sigma 0.53')."""
+
+
+@pytest.mark.parametrize("name", list(STATED_004))
+def test_004_error_free_data_from_the_largest_start_stays_within_the_stated_bound(boat,
+                                                                                  name):
+    """The corners of the large start on error-free data, for the two ST filters that
+    fail the 1-sigma bound above: stukf (one corner's heading transient through the z
+    gyro, the indexer axis, which the rotation does not modulate; 60' / -96' with kappa
+    = 3 - n) and stekf (the method's: PSINS's alignvn_stekf on the experiment's episodes follows
+    ours within 0.4' of heading, benchmarks/psins/filters_004.py; its small-angle
+    velocity feedback leaves 1.4 m/s at a 52 deg estimate). Not diverged, and every axis
+    within the stated multiple of its own sigma. A worse transient fails here; a
+    smaller one the strict xfail above."""
+    heading, level = STATED_004[name]
+    run = boat.runs[name]["ideal"]
+    z = np.abs(run.error) / run.sigma
+    assert not boat.runs[name]["diverged"].any()
+    assert np.all(z[:, 2] < heading), show(run.error, run.sigma)
+    assert np.all(z[:, :2] < level), show(run.error, run.sigma)
 
 
 @pytest.mark.parametrize("name", FILTERS4)
