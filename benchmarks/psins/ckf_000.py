@@ -1,4 +1,4 @@
-"""Paper 000's CKF against an independent implementation (GNU Octave, PSINS toolbox).
+"""Paper 000's CKF (or EKF) against an independent implementation (GNU Octave, PSINS).
 
 Question: our ``ckf`` diverges from paper 000's "large" start (30 deg heading error, P0
 heading sigma 30 deg). Method, or defect? This script
@@ -12,18 +12,20 @@ heading sigma 30 deg). Method, or defect? This script
 3. runs ``ckf_000_run.m`` in Octave: a PSINS strapdown (``insinit``/``insupdate``), the
    model of ``odo000_fx.m``/``odo000_hx.m`` (written from ALGORITHMS 4.1-4.7, exact in the
    Euler angles, RK4 in time) and PSINS's cubature filter ``ckf``/``ckfCT`` called as a
-   library, with the same closed-loop feedback rule;
+   library (``--filter ekf``: PSINS's ``ekf`` on the same maps, their Jacobians by
+   central differences, ``odo000_jcb.m``), with the same closed-loop feedback rule;
 4. prints the heading error, its sigma and the NEES over time, ours against PSINS, per
    episode and start, and the first epoch's measurement moments from the cubature rule
    against a Monte Carlo reference.
 
-Usage:  python benchmarks/psins/ckf_000.py [--episodes 3] [--seed 0] [--psins DIR]
-        [--work DIR] [--keep]
+Usage:  python benchmarks/psins/ckf_000.py [--filter ckf|ekf] [--episodes 3] [--seed 0]
+        [--psins DIR] [--work DIR] [--keep]
 PSINS: --psins or $PSINS_DIR (a work tree with base/), else the bare snapshot $PSINS_GIT
 (default /work/.mirror/WangShanpeng+PSINS/repo), whose base/ is extracted to a temp dir.
 Without octave or a PSINS snapshot the script says so in one line and exits 0.
 Runtime: about 10 min for 3 episodes (Octave: ~95 s per episode and start, of which
-~20 s is the first epoch's Monte Carlo check); prefix it with `nice -n 10`.
+~20 s is the first epoch's Monte Carlo check; ``--filter ekf`` about 130 s, no
+Monte Carlo); prefix it with `nice -n 10`.
 """
 from __future__ import annotations
 
@@ -41,14 +43,15 @@ import numpy as np
 from psins_setup import find_octave, find_psins, psinsenvi_shim
 
 HERE = Path(__file__).resolve().parent
-PSINS_FILES = ("base/kf/ckf.m",)
+PSINS_FILES = ("base/kf/ckf.m", "base/kf/ekf.m")
 """What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
 TIMES = (0, 1, 2, 5, 10, 30, 60, 120, 300)
 
 
-def export_runs(exp, episodes, work: Path) -> list[tuple[str, int, Path]]:
-    """One .mat per (start, episode) with what the filter consumes."""
+def export_runs(exp, episodes, work: Path, name: str = "ckf"
+                ) -> list[tuple[str, int, Path]]:
+    """One .mat per (start, episode) with what the filter ``name`` consumes."""
     from scipy.io import savemat
     from aligngym.models.attitude import quat_to_dcm
 
@@ -76,7 +79,7 @@ def export_runs(exp, episodes, work: Path) -> list[tuple[str, int, Path]]:
                 "R": np.eye(3) * tu.measurement_sigma ** 2,
                 "feedback_below": model.feedback_below,
                 "start_error": np.broadcast_to(starts[start], (B, 3))[b],
-                "check": 1})
+                "filter": name, "check": int(name == "ckf")})
             runs.append((start, b, path))
     return runs
 
@@ -124,6 +127,7 @@ def first_epoch_table(o) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--filter", choices=("ckf", "ekf"), default="ckf")
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--psins", default=None, help="PSINS work tree (with base/)")
@@ -155,14 +159,15 @@ def main(argv=None) -> int:
         t0 = time.time()
         seeds = episode_seeds(args.seed, args.episodes)
         episodes = prepare_all(exp, seeds, None, False, 1, False)
-        runs = export_runs(exp, episodes, work)
+        name = args.filter
+        runs = export_runs(exp, episodes, work, name)
         print(f"prepared and exported {len(episodes)} episodes (seeds {seeds}), "
               f"{time.time() - t0:.0f} s; work dir {work}")
         starts = exp.start_errors(episodes)
         ours = {}
-        for name in ("ckf", "rdghkf"):
+        for filt in (name, "rdghkf"):
             for start in exp.starts:
-                ours[name, start] = run_filter(name, start, starts[start], episodes, exp)
+                ours[filt, start] = run_filter(filt, start, starts[start], episodes, exp)
         print(f"our filters done, {time.time() - t0:.0f} s")
 
         listfile = work / "runs.txt"
@@ -180,12 +185,13 @@ def main(argv=None) -> int:
         summary = []
         for start, b, path in runs:
             mine = psins_result(path, episodes, b, exp)
-            run, ref = ours["ckf", start], ours["rdghkf", start]
+            run, ref = ours[name, start], ours["rdghkf", start]
             K1 = run.error_n.shape[1]
             ks = [k for k in TIMES if k < K1] + [K1 - 1]
             print(f"\n== start {start!r}, episode {b} (seed {seeds[b]}): heading error / "
                   "sigma (arcmin), 9-state NEES")
-            print(f"  {'t s':>5s} {'ours ckf':>22s} {'PSINS ckf':>22s} {'ours rdghkf':>22s}")
+            print(f"  {'t s':>5s} {'ours ' + name:>22s} {'PSINS ' + name:>22s} "
+                  f"{'ours rdghkf':>22s}")
             for k in ks:
                 cell = lambda e, s, v: f"{e / ARCMIN:9.2f}/{s / ARCMIN:7.2f} {v:6.0f}"  # noqa: E731
                 print(f"  {k:5d} "
@@ -198,8 +204,10 @@ def main(argv=None) -> int:
                   f"ours {np.nanmean(run.nees[b, 1:]):.0f}, PSINS {np.nanmean(mine.nees[1:]):.0f} "
                   f"(9 dof); ours diverged={bool(run.diverged[b])} ({run.reason[b] or '-'}), "
                   f"PSINS numerically diverged={bool(mine.diverged)}")
-            print("  first epoch, measurement moments and implied heading update (PSINS model):")
-            print("\n".join(first_epoch_table(mine.out)))
+            if "first" in mine.out:
+                print("  first epoch, measurement moments and implied heading update "
+                      "(PSINS model):")
+                print("\n".join(first_epoch_table(mine.out)))
             summary.append((start, b, run.error_n[b, -1, 2] / ARCMIN, mine.err[-1, 2] / ARCMIN,
                             run.error_n[b, 30, 2] / ARCMIN, mine.err[30, 2] / ARCMIN))
         print("\nSUMMARY heading error (arcmin): start, episode, ours@end, PSINS@end, "

@@ -1,8 +1,9 @@
 function ckf_000_run(listfile, psins_dir, shim_dir)
-% Independent paper-000 CKF run: for every input file named in listfile (one a line,
-% written by ckf_000.py), run a PSINS strapdown (insinit/insupdate, two-sample coning
-% and sculling) on the raw increments, the model of odo000_fx / odo000_hx, PSINS's
-% cubature filter ckf(kf, z, 'B') (ckfCT: third-degree spherical-radial rule), and the
+% Independent paper-000 CKF (or EKF) run: for every input file named in listfile (one a
+% line, written by ckf_000.py), run a PSINS strapdown (insinit/insupdate, two-sample
+% coning and sculling) on the raw increments, the model of odo000_fx / odo000_hx, PSINS's
+% cubature filter ckf(kf, z, 'B') (ckfCT: third-degree spherical-radial rule) or, where
+% the file's filter is 'ekf', PSINS's ekf(kf, z, 'B') on the same maps, and the
 % closed-loop feedback once the heading sigma is below the threshold; save the attitude,
 % x, P and the bias estimates at every epoch boundary to <input>_out.mat.
 % psins_dir: a PSINS work tree (its base/ is added to the path); shim_dir holds a stub
@@ -33,7 +34,12 @@ function out = run_one(d)
   kf = [];
   kf.xk = zeros(n, 1); kf.Pxk = d.P0;
   kf.Qk = diag(d.qdiag(:))*T; kf.Gammak = eye(n); kf.Rk = d.R;
-  kf.fx = @odo000_fx; kf.hx = @odo000_hx;
+  use_ekf = isfield(d, 'filter') && strcmp(strtrim(d.filter), 'ekf');
+  if use_ekf     % PSINS's ekf: Jacobians of the same maps, by central differences
+    kf.fx = @(x, p) odo000_jcb(@odo000_fx, x, p); kf.hx = @(x, p) odo000_jcb(@odo000_hx, x, p);
+  else
+    kf.fx = @odo000_fx; kf.hx = @odo000_hx;
+  end
   out.C = zeros(K+1, 3, 3); out.x = zeros(K+1, n); out.P = zeros(K+1, n, n);
   out.eb = zeros(K+1, 3); out.db = zeros(K+1, 3); out.z = zeros(K, 3);
   out.zhat = zeros(K, 3); out.feedback = zeros(K, 1); out.diverged = 0; out.diverged_k = -1;
@@ -64,7 +70,7 @@ function out = run_one(d)
     kf.px = p; kf.py = p;
     if ~out.diverged
       try
-        kf = ckf(kf, zk, 'B');
+        if use_ekf, kf = ekf(kf, zk, 'B'); else, kf = ckf(kf, zk, 'B'); end
         if any(~isfinite(kf.xk)) || any(~isfinite(kf.Pxk(:))), error('nan'); end
         chol(kf.Pxk);
       catch
