@@ -119,10 +119,14 @@ class Paper000Experiment(Experiment):
               "000 sec. 2.2, conclusion",
               {"sgkf points": rule_points("sgkf", 18), "ckf points": rule_points("ckf", 18),
                "sgkf ms/epoch": ms_per_epoch("sgkf"), "ckf ms/epoch": ms_per_epoch("ckf")},
-              lambda n: n["sgkf points"] < n["ckf points"] and n["sgkf ms/epoch"] < n["ckf ms/epoch"],
-              "7 points against 36, but each GH point carries its conditional covariance "
-              "through F(zeta_i) Sigma_c F(zeta_i)^T (ALGORITHMS 4.9), a 17 x 17 product per "
-              "point, where a cubature point is one state vector", settings={"starts": ("coarse",)},
+              lambda n: (n["sgkf points"] < n["ckf points"]
+                         and n["sgkf ms/epoch"] < 0.8 * n["ckf ms/epoch"]),
+              "7 points against 36, but the time per epoch is about the CKF's (0.88-1.06x "
+              "in two runs of 20 episodes; a lower computation is taken as below 0.8x, "
+              "outside the timing noise of a campaign): each GH point carries its "
+              "conditional covariance through F(zeta_i) Sigma_c F(zeta_i)^T (ALGORITHMS "
+              "4.9), a 17 x 17 product per point, where a cubature point is one state "
+              "vector", settings={"starts": ("coarse",)},
               filters=("sgkf", "rdghkf", "ckf")),
         Claim("Strong tracking keeps the filter stable through abrupt changes: with "
               "odometer slip bursts the SGKF at least as accurate as the GH filter without it",
