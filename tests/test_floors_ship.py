@@ -240,11 +240,12 @@ def test_004_error_free_data_from_the_largest_start_end_inside_one_sigma(boat, n
     assert np.all(np.abs(run.error) < run.sigma), show(run.error, run.sigma)
 
 
-STATED_004 = {"stukf": (2.0, 1.0), "stekf": (18.0, 4.0)}
+STATED_004 = {"stukf": (2.2, 1.0), "stekf": (21.0, 5.0)}
 """Bounds, in units of the filter's own final sigma (heading, level), of the ST filters'
-large-start transient on error-free data at 600 s, about 1.2x what they leave: stukf
-1.7 sigma / 0.53 sigma (13' / -50' heading, sigma 29.5'), stekf 16.5 sigma / 3.8 sigma
-(460' / -398' heading, sigma 28'; 2.0' level, sigma 0.53')."""
+large-start transient on error-free data at 600 s, about 1.3x what they leave at the
+two corners: stukf 1.7 sigma heading (13' and -50', sigma 29.5'), 0.53 sigma level;
+stekf 16.5 sigma heading (460' and -398', sigma 28'), 3.8 sigma level (2.0', sigma
+0.53')."""
 
 
 @pytest.mark.parametrize("name", list(STATED_004))
@@ -254,10 +255,11 @@ def test_004_error_free_data_from_the_largest_start_stays_within_the_stated_boun
     fail the 1-sigma bound above: stukf (one corner's heading transient through the z
     gyro, the indexer axis, which the rotation does not modulate; 60' / -96' with kappa
     = 3 - n) and stekf (the method's: PSINS's alignvn_stekf on the experiment's episodes follows
-    ours within 0.4' of heading, benchmarks/psins/filters_004.py; its small-angle
+    ours within 0.43' of heading over 600-2000 s on 2 episodes,
+    benchmarks/psins/filters_004.py; its small-angle
     velocity feedback leaves 1.4 m/s at a 52 deg estimate). Not diverged, and every axis
-    within the stated multiple of its own sigma. A worse transient fails here; a
-    smaller one the strict xfail above."""
+    within the stated multiple of its own sigma. A worse transient fails here; one
+    inside 1 sigma would turn the strict xfail above into a failure."""
     heading, level = STATED_004[name]
     run = boat.runs[name]["ideal"]
     z = np.abs(run.error) / run.sigma

@@ -267,8 +267,8 @@ def test_paper_setup_ideal_data_stays_within_its_stated_bound(paper_setup_ideal,
     no floor, so what is left is the setup's own response to the sway, within the stated
     bound. The KF's is the paper's claim itself (it is lost under sway: 10' of heading,
     flagged in 2 of 4 episodes, NEES 500-4600 on exact sensors); the R-scaling factors
-    hold it at 2-2.3' (sakf-r consistent: NEES 6.5-15 of 9; makf-r and imakf-r, one
-    filter here, overconfident: 44-175)."""
+    hold it at 2-2.3' (NEES of the 3 attitude states: sakf-r 6.5-15, makf-r and imakf-r,
+    one filter here, 44-175; all overconfident, sakf-r least)."""
     exp, episodes, start = paper_setup_ideal
     heading, level = PAPER_SETUP_IDEAL[name]
     run = run_filter(name, "mean", np.broadcast_to(start, (len(episodes), 3)), episodes, exp)

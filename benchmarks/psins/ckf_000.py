@@ -43,7 +43,7 @@ import numpy as np
 from psins_setup import find_octave, find_psins, psinsenvi_shim
 
 HERE = Path(__file__).resolve().parent
-PSINS_FILES = ("base/kf/ckf.m", "base/kf/ekf.m")
+PSINS_FILES = ("base/kf/ckf.m", "base/kf/ckfCT.m", "base/kf/ekf.m", "base/kf/ekfJcb.m")
 """What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
 TIMES = (0, 1, 2, 5, 10, 30, 60, 120, 300)
