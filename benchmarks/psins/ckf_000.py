@@ -30,19 +30,15 @@ Monte Carlo); prefix it with `nice -n 10`.
 from __future__ import annotations
 
 import argparse
-import shutil
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from psins_setup import find_octave, find_psins, psinsenvi_shim
+from psins_setup import add_psins_options, psins_workspace, run_octave
 
-HERE = Path(__file__).resolve().parent
 PSINS_FILES = ("base/kf/ckf.m", "base/kf/ckfCT.m", "base/kf/ekf.m", "base/kf/ekfJcb.m")
 """What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
@@ -130,25 +126,13 @@ def main(argv=None) -> int:
     ap.add_argument("--filter", choices=("ckf", "ekf"), default="ckf")
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--psins", default=None, help="PSINS work tree (with base/)")
-    ap.add_argument("--work", default=None, help="directory for the .mat files")
-    ap.add_argument("--keep", action="store_true", help="keep the temporary directory (PSINS extract, stub, default work dir)")
+    add_psins_options(ap)
     args = ap.parse_args(argv)
 
-    octave = find_octave()
-    if octave is None:
-        print("ckf_000: octave not found; skipped")
-        return 0
-    tmp = Path(tempfile.mkdtemp(prefix="ckf000_"))
-    try:
-        psins = find_psins(args.psins, tmp, PSINS_FILES)
-        if psins is None:
-            print("ckf_000: PSINS snapshot not found (--psins, $PSINS_DIR or $PSINS_GIT); "
-                  "skipped")
+    with psins_workspace("ckf_000", args, PSINS_FILES) as ws:
+        if ws is None:
             return 0
-        work = Path(args.work) if args.work else tmp / "work"
-        work.mkdir(parents=True, exist_ok=True)
-        shim = psinsenvi_shim(tmp)
+        work = ws.work
 
         from aligngym.scenarios.campaign.episodes import episode_seeds
         from aligngym.scenarios.campaign.executors import prepare_all
@@ -170,15 +154,9 @@ def main(argv=None) -> int:
                 ours[filt, start] = run_filter(filt, start, starts[start], episodes, exp)
         print(f"our filters done, {time.time() - t0:.0f} s")
 
-        listfile = work / "runs.txt"
-        listfile.write_text("".join(f"{p}\n" for _, _, p in runs))
-        cmd = [octave, "--no-gui", "--quiet", "--eval",
-               f"addpath('{HERE}'); ckf_000_run('{listfile}', '{psins}', '{shim}')"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        missing = [p for _, _, p in runs if not Path(str(p).replace(".mat", "_out.mat")).is_file()]
-        if missing:
-            print(proc.stdout[-3000:], proc.stderr[-3000:], sep="\n")
-            print(f"ckf_000: octave failed ({len(missing)} runs without output)")
+        inputs = [p for _, _, p in runs]
+        if not run_octave("ckf_000", ws, inputs,
+                          [str(p).replace(".mat", "_out.mat") for p in inputs]):
             return 1
         print(f"octave done, {time.time() - t0:.0f} s")
 
@@ -218,9 +196,6 @@ def main(argv=None) -> int:
         print(f"control (coarse start): max |ours - PSINS| at the end = {max(control):.2f}'"
               + ("  OK (< 1')" if max(control) < 1.0 else "  NOT within 1'"))
         return 0
-    finally:
-        if not args.keep:      # a --work directory is outside tmp and stays
-            shutil.rmtree(tmp, ignore_errors=True)
 
 
 if __name__ == "__main__":

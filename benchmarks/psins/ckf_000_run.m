@@ -8,13 +8,9 @@ function ckf_000_run(listfile, psins_dir, shim_dir)
 % x, P and the bias estimates at every epoch boundary to <input>_out.mat.
 % psins_dir: a PSINS work tree (its base/ is added to the path); shim_dir holds a stub
 % psinsenvi.m (PSINS generates that file at install time).
-  addpath(genpath(fullfile(psins_dir, 'base')));
-  addpath(shim_dir);
-  addpath(fileparts(mfilename('fullpath')));
+  files = psins_runs(listfile, psins_dir, shim_dir);
   global glv
   glv = glvf();
-  files = strtrim(strsplit(fileread(listfile), "\n"));
-  files = files(~cellfun(@isempty, files));
   for f = 1:numel(files)
     t0 = tic;
     d = load(files{f});

@@ -37,19 +37,15 @@ native STEKF 4.5 min); prefix it with `nice -n 19`.
 from __future__ import annotations
 
 import argparse
-import shutil
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from psins_setup import find_octave, find_psins, psinsenvi_shim
+from psins_setup import add_psins_options, psins_workspace, run_octave
 
-HERE = Path(__file__).resolve().parent
 PSINS_FILES = ("base/kf/ukf.m", "base/base2/etmST.m")
 """What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
@@ -144,26 +140,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a paper004 setting (e.g. swing=severe, fine_duration=600)")
-    ap.add_argument("--psins", default=None, help="PSINS work tree (with base/)")
-    ap.add_argument("--work", default=None, help="directory for the .mat files")
-    ap.add_argument("--keep", action="store_true",
-                    help="keep the temporary directory (PSINS extract, stub, default work dir)")
+    add_psins_options(ap)
     args = ap.parse_args(argv)
 
-    octave = find_octave()
-    if octave is None:
-        print("filters_004: octave not found; skipped")
-        return 0
-    tmp = Path(tempfile.mkdtemp(prefix="filters004_"))
-    try:
-        psins = find_psins(args.psins, tmp, PSINS_FILES)
-        if psins is None:
-            print("filters_004: PSINS snapshot not found (--psins, $PSINS_DIR or "
-                  "$PSINS_GIT); skipped")
+    with psins_workspace("filters_004", args, PSINS_FILES) as ws:
+        if ws is None:
             return 0
-        work = Path(args.work) if args.work else tmp / "work"
-        work.mkdir(parents=True, exist_ok=True)
-        shim = psinsenvi_shim(tmp)
+        work = ws.work
 
         from aligngym.scenarios.campaign.episodes import episode_seeds
         from aligngym.scenarios.campaign.executors import prepare_all
@@ -182,16 +165,9 @@ def main(argv=None) -> int:
         ours = {name: run_filter(name, start, start_error, episodes, exp) for name in OURS}
         print(f"our filters done, {time.time() - t0:.0f} s")
 
-        listfile = work / "runs.txt"
-        listfile.write_text("".join(f"{p}\n" for p in paths))
-        cmd = [octave, "--no-gui", "--quiet", "--eval",
-               f"addpath('{HERE}'); filters_004_run('{listfile}', '{psins}', '{shim}')"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        missing = [f"{p.stem}_{n}" for p in paths for n in PSINS_FILTERS
-                   if not Path(str(p).replace(".mat", f"_{n}_out.mat")).is_file()]
-        if missing:
-            print(proc.stdout[-3000:], proc.stderr[-3000:], sep="\n")
-            print(f"filters_004: octave failed ({len(missing)} runs without output)")
+        outputs = [str(p).replace(".mat", f"_{n}_out.mat") for p in paths
+                   for n in PSINS_FILTERS]
+        if not run_octave("filters_004", ws, paths, outputs):
             return 1
         print(f"octave done, {time.time() - t0:.0f} s")
 
@@ -257,9 +233,6 @@ def main(argv=None) -> int:
               f"{np.sqrt(np.mean([e[1] ** 2 for e in native])):6.2f}', NEES "
               f"{np.mean([e[2] for e in native]):5.1f}")
         return 0
-    finally:
-        if not args.keep:      # a --work directory is outside tmp and stays
-            shutil.rmtree(tmp, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -16,12 +16,8 @@ function filters_004_run(listfile, psins_dir, shim_dir)
 % <input>_<filter>_out.mat.
 % psins_dir: a PSINS work tree (its base/ is added to the path); shim_dir holds a stub
 % psinsenvi.m (PSINS generates that file at install time).
-  addpath(genpath(fullfile(psins_dir, 'base')));
-  addpath(shim_dir);
-  addpath(fileparts(mfilename('fullpath')));
+  files = psins_runs(listfile, psins_dir, shim_dir);
   global glv
-  files = strtrim(strsplit(fileread(listfile), "\n"));
-  files = files(~cellfun(@isempty, files));
   for f = 1:numel(files)
     d = load(files{f});
     glv = glvf(d.Re, d.flattening, d.wie);

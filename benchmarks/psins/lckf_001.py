@@ -58,19 +58,15 @@ s an episode; ~45 s with --as-lckf discretisation); prefix it with `nice -n 10`.
 from __future__ import annotations
 
 import argparse
-import shutil
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from psins_setup import find_octave, find_psins, psinsenvi_shim
+from psins_setup import add_psins_options, psins_workspace, run_octave
 
-HERE = Path(__file__).resolve().parent
 PSINS_FILES = ("base/kf/kfupdate.m",)
 """What the check calls in PSINS (under its tree)."""
 ARCMIN = np.pi / 180 / 60
@@ -186,10 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--psins", default=None, help="PSINS work tree (with base/)")
-    ap.add_argument("--work", default=None, help="directory for the .mat files")
-    ap.add_argument("--keep", action="store_true",
-                    help="keep the temporary directory (PSINS extract, stub, default work dir)")
+    add_psins_options(ap)
     ap.add_argument("--fine-duration", type=float, default=None,
                     help="s of filtering after the coarse stage (default: to the run's end)")
     ap.add_argument("--as-lckf", default="", metavar="LIST",
@@ -202,20 +195,10 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--as-lckf: unknown {sorted(as_lckf - set(AS_LCKF))}; valid: "
                  + ", ".join(AS_LCKF))
 
-    octave = find_octave()
-    if octave is None:
-        print("lckf_001: octave not found; skipped")
-        return 0
-    tmp = Path(tempfile.mkdtemp(prefix="lckf001_"))
-    try:
-        psins = find_psins(args.psins, tmp, PSINS_FILES)
-        if psins is None:
-            print("lckf_001: PSINS snapshot not found (--psins, $PSINS_DIR or $PSINS_GIT); "
-                  "skipped")
+    with psins_workspace("lckf_001", args, PSINS_FILES) as ws:
+        if ws is None:
             return 0
-        work = Path(args.work) if args.work else tmp / "work"
-        work.mkdir(parents=True, exist_ok=True)
-        shim = psinsenvi_shim(tmp)
+        work = ws.work
 
         from aligngym.scenarios.campaign.episodes import episode_seeds
         from aligngym.scenarios.campaign.executors import prepare_all
@@ -234,15 +217,9 @@ def main(argv: list[str] | None = None) -> int:
         pos, vel = navigation_errors(run, episodes)
         print(f"our lckf done, {time.time() - t0:.0f} s")
 
-        listfile = work / "runs.txt"
-        listfile.write_text("".join(f"{p}\n" for _, p in runs))
-        cmd = [octave, "--no-gui", "--quiet", "--eval",
-               f"addpath('{HERE}'); lckf_001_run('{listfile}', '{psins}', '{shim}')"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        missing = [p for _, p in runs if not Path(str(p).replace(".mat", "_out.mat")).is_file()]
-        if missing:
-            print(proc.stdout[-3000:], proc.stderr[-3000:], sep="\n")
-            print(f"lckf_001: octave failed ({len(missing)} runs without output)")
+        inputs = [p for _, p in runs]
+        if not run_octave("lckf_001", ws, inputs,
+                          [str(p).replace(".mat", "_out.mat") for p in inputs]):
             return 1
         print(f"octave done, {time.time() - t0:.0f} s")
 
@@ -282,9 +259,6 @@ def main(argv: list[str] | None = None) -> int:
             cell = lambda v: "".join(f"{x:9.4f}" for x in v)  # noqa: E731
             print(f"  {b:3d} {cell(every)}  |{cell(motion)}  |{cell(end)}")
         return 0
-    finally:
-        if not args.keep:      # a --work directory is outside tmp and stays
-            shutil.rmtree(tmp, ignore_errors=True)
 
 
 if __name__ == "__main__":

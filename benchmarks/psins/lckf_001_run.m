@@ -14,11 +14,8 @@ function lckf_001_run(listfile, psins_dir, shim_dir)
 % an epoch as lckf does it, and PSINS's gravity fixed at ours (glv.gfix).
 % psins_dir: a PSINS work tree (its base/ is added to the path); shim_dir holds a stub
 % psinsenvi.m (PSINS generates that file at install time).
-  addpath(genpath(fullfile(psins_dir, 'base')));
-  addpath(shim_dir);
+  files = psins_runs(listfile, psins_dir, shim_dir);
   global glv
-  files = strtrim(strsplit(fileread(listfile), "\n"));
-  files = files(~cellfun(@isempty, files));
   for f = 1:numel(files)
     t0 = tic;
     d = load(files{f});
