@@ -94,6 +94,16 @@ def arcmin_text(values) -> str:
     return np.array2string(np.asarray(values) / arcmin, precision=3, suppress_small=True)
 
 
+def assert_within_stated(run, b, bound, label: str) -> None:
+    """Episodes b's max |error| over the last 60 s within bound = (heading, level),
+    arcmin: a method-limited filter's stated ideal-data bound."""
+    heading, level = bound
+    worst, _ = last(run, b)
+    info = f"{label}: last 60 s max |error| {arcmin_text(worst)}'"
+    assert np.all(worst[..., 2] < heading * arcmin), info
+    assert np.all(worst[..., :2] < level * arcmin), info
+
+
 def ideal_limit(dof: int) -> float:
     """NEES bound on noise-free data: a consistent filter's state error there is its
     transient alone, below the noise the chi-square counts; one-sided 97.5 %."""
@@ -277,17 +287,13 @@ def test_000_ideal_data_method_limited_filters_stay_within_their_stated_bound(
     a reason of their method, shown rather than assumed: ckf (points at sqrt(18) sigma =
     127 deg of heading, where the third-degree cubature gets sin and cos wrong; PSINS's
     ckf on the same model gives the same heading epoch by epoch on the experiment's own
-    episodes, benchmarks/psins/ckf_000.py) and ekf (its linearisation in phi_U: final NEES 2.1-2.5
-    from 2-10 deg, 16.5 from 15.3, 4244 from 30 deg, where rdghkf on the same model ends
-    at 0.9-1.0' from every start; PSINS's ekf on the independent model agrees within
+    episodes, benchmarks/psins/ckf_000.py) and ekf (its linearisation in phi_U: final
+    NEES 2.1-2.5 from 2-10 deg, 16.5 from 15.3, 4244 from 30 deg, where rdghkf on the
+    same model ends at 0.9-1.0' from every start; PSINS's ekf on the independent model agrees within
     0.11', ``ckf_000.py --filter ekf``). A worse filter fails here; one that came to
     meet the physics bound would turn the strict xfail above into a failure."""
-    heading, level = STATED_000[name, start]
     b = car000.labels.index(f"ideal, {start}")
-    worst, _ = last(runs000(name), b)
-    info = f"{name} {start}: last 60 s max |error| {arcmin_text(worst)}'"
-    assert worst[2] < heading * arcmin, info
-    assert np.all(worst[:2] < level * arcmin), info
+    assert_within_stated(runs000(name), b, STATED_000[name, start], f"{name} {start}")
 
 
 @pytest.mark.parametrize("name", [
@@ -435,12 +441,8 @@ def test_001_ideal_data_heading_aided_filters_stay_within_their_stated_bound(
     With that offset in the sigma (``--heading-sigma sideslip``) both are consistent on
     these data (the test below). A worse filter fails here; one that came to meet the
     physics bound would turn the strict xfail above into a failure."""
-    heading, level = STATED_001[name]
     b = np.arange(car001.real, len(car001.episodes))
-    worst, _ = last(runs001(name), b)
-    info = f"{name}: last 60 s max |error| {arcmin_text(worst)}'"
-    assert np.all(worst[:, 2] < heading * arcmin), info
-    assert np.all(worst[:, :2] < level * arcmin), info
+    assert_within_stated(runs001(name), b, STATED_001[name], name)
 
 
 @pytest.fixture(scope="module")
