@@ -1,6 +1,6 @@
 """The campaign engine: settings checked, the directory claimed (created, locked, its
 manifest checked), the episodes prepared (executors, stored as they finish), then every
-filter from every start run batched over all episodes."""
+filter run once, batched over all episodes from all starts."""
 from __future__ import annotations
 
 import os
@@ -11,7 +11,7 @@ from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
 from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
 from aligngym.scenarios.campaign.manifest import campaign_lock, check_manifest
-from aligngym.scenarios.campaign.runs import filter_threads, run_filter
+from aligngym.scenarios.campaign.runs import filter_threads, run_filter_starts
 from aligngym.scenarios.config import ConfigError
 
 
@@ -62,9 +62,9 @@ def _run(experiment: Experiment, episodes: int, seed: int, filters: list[str],
     result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared),
                             seed=seed)
     from tqdm import tqdm          # after the checks: their errors answer at once
-    jobs = [(f, s) for f in filters for s in experiment.starts]
-    for name, start in tqdm(jobs, disable=not progress, desc="filters"):
+    starts = {s: result.start_errors[s] for s in experiment.starts}
+    for name in tqdm(filters, disable=not progress, desc="filters"):
         raise_if_interrupted()
-        result.runs.append(run_filter(name, start, result.start_errors[start], prepared,
-                                      experiment, filter_threads(name, experiment, workers)))
+        result.runs += run_filter_starts(name, starts, prepared, experiment,
+                                         filter_threads(name, experiment, workers))
     return result

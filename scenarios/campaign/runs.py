@@ -68,6 +68,52 @@ def run_filter(name: str, start: str, start_error: np.ndarray,
     return analyse_run(name, start, result, episodes, experiment)
 
 
+def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
+                      episodes: list[PreparedEpisode], experiment: Experiment,
+                      threads: int = 1) -> list[FilterRun]:
+    """One filter from every start (name -> start error, rad: common (3,) or per episode
+    (B, 3)) as one batch of episodes x starts, one FilterRun per start in the given order.
+    The episodes of a batch are independent, so each start's run is the one
+    ``run_filter`` gives, at the per-epoch cost of one batch (a few starts of a few
+    episodes cost little more than one); seconds_per_epoch is shared in proportion."""
+    names = list(start_errors)
+    B = len(episodes)
+    starts = np.concatenate([np.broadcast_to(np.asarray(start_errors[s], dtype=float), (B, 3))
+                             for s in names])
+    variant = filter_entry(name).model
+    everything = [episodes[i % B] for i in range(B * len(names))]
+    chunks = [c for c in np.array_split(np.arange(len(everything)), max(1, threads)) if c.size]
+
+    def run_chunk(idx: np.ndarray) -> FineResult:
+        filt = make_filter(name, **experiment.filter_options())
+        return run_alignment(filt, experiment.model([everything[i] for i in idx],
+                                                    starts[idx], variant))
+
+    if len(chunks) == 1:
+        result = run_chunk(chunks[0])
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(len(chunks)) as pool:
+            result = concatenate_results(list(pool.map(run_chunk, chunks)))
+    return [analyse_run(name, s, batch_slice(result, slice(k * B, (k + 1) * B)), episodes,
+                        experiment) for k, s in enumerate(names)]
+
+
+def batch_slice(result: FineResult, index: slice) -> FineResult:
+    """The episodes ``index`` of a batched result; seconds_per_epoch their share."""
+    B = result.C_s_n.shape[0]
+    share = (len(range(B)[index]) / B) if B else 0.0
+    take = lambda name: getattr(result, name)[index]  # noqa: E731
+    return FineResult(t=result.t, C_s_n=take("C_s_n"), P=take("P"), sigma_n=take("sigma_n"),
+                      x=take("x"), factors=take("factors"), diverged=take("diverged"),
+                      diverged_time=take("diverged_time"),
+                      diverged_reason=result.diverged_reason[index], repairs=take("repairs"),
+                      seconds_per_epoch=result.seconds_per_epoch * share,
+                      series={k: v[index] for k, v in result.series.items()},
+                      nis=None if result.nis is None else result.nis[index],
+                      nis_dof=None if result.nis_dof is None else result.nis_dof[index])
+
+
 def filter_threads(name: str, experiment: Experiment, workers: int) -> int:
     """Threads worth giving a filter: all workers for rules with >= 100 points per
     episode (their array work dominates), one otherwise (thread overhead would)."""
