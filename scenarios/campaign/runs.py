@@ -43,39 +43,21 @@ def run_filter(name: str, start: str, start_error: np.ndarray,
                episodes: list[PreparedEpisode], experiment: Experiment,
                threads: int = 1, **model_options: Any) -> FilterRun:
     """One filter on all episodes from a starting error (rad; common (3,) or per episode
-    (B, 3)); model_options go to ``experiment.model`` (e.g. paper 003's tuning). With
-    threads > 1 the batch is split into that many chunks run in threads (NumPy releases
-    the GIL in its array loops; the episodes are independent, so the result is the same
-    as one batch)."""
-    start_error = np.asarray(start_error, dtype=float)
-    per_episode = np.broadcast_to(start_error, (len(episodes), 3))
-    chunks = [c for c in np.array_split(np.arange(len(episodes)), max(1, threads)) if c.size]
-
-    variant = filter_entry(name).model
-
-    def run_chunk(idx: np.ndarray) -> FineResult:
-        filt = make_filter(name, **experiment.filter_options())
-        return run_alignment(filt, experiment.model([episodes[i] for i in idx],
-                                                    per_episode[idx], variant,
-                                                    **model_options))
-
-    if len(chunks) == 1:
-        result = run_chunk(chunks[0])
-    else:
-        from concurrent.futures import ThreadPoolExecutor
-        with ThreadPoolExecutor(len(chunks)) as pool:
-            result = concatenate_results(list(pool.map(run_chunk, chunks)))
-    return analyse_run(name, start, result, episodes, experiment)
+    (B, 3)); model_options go to ``experiment.model`` (e.g. paper 003's tuning)."""
+    return run_filter_starts(name, {start: start_error}, episodes, experiment, threads,
+                             **model_options)[0]
 
 
 def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
                       episodes: list[PreparedEpisode], experiment: Experiment,
-                      threads: int = 1) -> list[FilterRun]:
+                      threads: int = 1, **model_options: Any) -> list[FilterRun]:
     """One filter from every start (name -> start error, rad: common (3,) or per episode
     (B, 3)) as one batch of episodes x starts, one FilterRun per start in the given order.
-    The episodes of a batch are independent, so each start's run is the one
-    ``run_filter`` gives, at the per-epoch cost of one batch (a few starts of a few
-    episodes cost little more than one); seconds_per_epoch is shared in proportion."""
+    The episodes of a batch are independent, so each start's run is the one it would be
+    alone, at the per-epoch cost of one batch (a few starts of a few episodes cost little
+    more than one); seconds_per_epoch is shared in proportion. With threads > 1 the batch
+    is split into that many chunks run in threads (NumPy releases the GIL in its array
+    loops), with the same result. model_options go to ``experiment.model``."""
     names = list(start_errors)
     B = len(episodes)
     starts = np.concatenate([np.broadcast_to(np.asarray(start_errors[s], dtype=float), (B, 3))
@@ -87,7 +69,7 @@ def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
     def run_chunk(idx: np.ndarray) -> FineResult:
         filt = make_filter(name, **experiment.filter_options())
         return run_alignment(filt, experiment.model([everything[i] for i in idx],
-                                                    starts[idx], variant))
+                                                    starts[idx], variant, **model_options))
 
     if len(chunks) == 1:
         result = run_chunk(chunks[0])
@@ -95,6 +77,8 @@ def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
         from concurrent.futures import ThreadPoolExecutor
         with ThreadPoolExecutor(len(chunks)) as pool:
             result = concatenate_results(list(pool.map(run_chunk, chunks)))
+    if len(names) == 1:
+        return [analyse_run(name, names[0], result, episodes, experiment)]
     return [analyse_run(name, s, batch_slice(result, slice(k * B, (k + 1) * B)), episodes,
                         experiment) for k, s in enumerate(names)]
 
