@@ -86,9 +86,20 @@ class OdometerInputs(AidedInsInputs):
 
 def _cz(c: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Cz (..., 3, 3) = [[c, s, 0], [-s, c, 0], [0, 0, 1]]."""
-    z, o = np.zeros_like(c), np.ones_like(c)
-    return np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1),
-                     np.stack([z, z, o], -1)], -2)
+    out = np.zeros(np.shape(c) + (3, 3))
+    out[..., 0, 0], out[..., 0, 1] = c, s
+    out[..., 1, 0], out[..., 1, 1] = -s, c
+    out[..., 2, 2] = 1.0
+    return out
+
+
+def _matrix(like: np.ndarray, entries: dict[tuple[int, int], np.ndarray | float]
+            ) -> np.ndarray:
+    """(..., 3, 3) zeros shaped like ``like`` (...,) with the given (row, column) entries."""
+    out = np.zeros(np.shape(like) + (3, 3))
+    for (i, j), value in entries.items():
+        out[..., i, j] = value
+    return out
 
 
 @dataclass
@@ -122,17 +133,12 @@ class EpochQuantities:
         R_M, R_N = radii(lat)
         R_Mh, R_Nh = R_M + h, R_N + h
         tL, secL = np.tan(lat), 1.0 / np.cos(lat)
-        z = np.zeros_like(lat)
-        M_av = np.stack([np.stack([z, -1 / R_Mh, z], -1), np.stack([1 / R_Nh, z, z], -1),
-                         np.stack([tL / R_Nh, z, z], -1)], -2)
+        M_av = _matrix(lat, {(0, 1): -1 / R_Mh, (1, 0): 1 / R_Nh, (2, 0): tL / R_Nh})
         # d(omega_ie + omega_en)/d(dL, dlambda, dh); d(omega_ie)/d dp alone for Coriolis.
-        M_ie = np.stack([np.stack([z, z, z], -1),
-                         np.stack([-OMEGA_IE * np.sin(lat), z, z], -1),
-                         np.stack([OMEGA_IE * np.cos(lat), z, z], -1)], -2)
-        M_en = np.stack([np.stack([z, z, v[:, 1] / R_Mh ** 2], -1),
-                         np.stack([z, z, -v[:, 0] / R_Nh ** 2], -1),
-                         np.stack([v[:, 0] * secL ** 2 / R_Nh, z,
-                                   -v[:, 0] * tL / R_Nh ** 2], -1)], -2)
+        M_ie = _matrix(lat, {(1, 0): -OMEGA_IE * np.sin(lat), (2, 0): OMEGA_IE * np.cos(lat)})
+        M_en = _matrix(lat, {(0, 2): v[:, 1] / R_Mh ** 2, (1, 2): -v[:, 0] / R_Nh ** 2,
+                             (2, 0): v[:, 0] * secL ** 2 / R_Nh,
+                             (2, 2): -v[:, 0] * tL / R_Nh ** 2})
         A[..., PHI, DV] = Cz @ M_av[:, None]
         A[..., PHI, DP] = Cz @ (M_ie + M_en)[:, None]
         A[..., PHI, EPS] = -self.C_b_n[:, None]
@@ -146,11 +152,10 @@ class EpochQuantities:
         A[..., DV, DP] = (V @ (2 * M_ie + M_en))[:, None]
         A[..., DV, NABLA] = np.swapaxes(Cz, -1, -2) @ self.C_b_n[:, None]
         # dp rows
-        M_pv = np.stack([np.stack([z, 1 / R_Mh, z], -1), np.stack([secL / R_Nh, z, z], -1),
-                         np.stack([z, z, z + 1], -1)], -2)
-        M_pp = np.stack([np.stack([z, z, -v[:, 1] / R_Mh ** 2], -1),
-                         np.stack([v[:, 0] * secL * tL / R_Nh, z, -v[:, 0] * secL / R_Nh ** 2],
-                                  -1), np.stack([z, z, z], -1)], -2)
+        M_pv = _matrix(lat, {(0, 1): 1 / R_Mh, (1, 0): secL / R_Nh, (2, 2): 1.0})
+        M_pp = _matrix(lat, {(0, 2): -v[:, 1] / R_Mh ** 2,
+                             (1, 0): v[:, 0] * secL * tL / R_Nh,
+                             (1, 2): -v[:, 0] * secL / R_Nh ** 2})
         A[..., DP, DV] = M_pv[:, None]
         A[..., DP, DP] = M_pp[:, None]
         b = np.zeros((B, P, n))

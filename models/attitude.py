@@ -41,11 +41,12 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def skew(v: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrix [v x]; v: (..., 3) -> (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
     x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -w, y], -1),
-                     np.stack([w, z, -x], -1),
-                     np.stack([-y, x, z], -1)], -2)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -w, y
+    out[..., 1, 0], out[..., 1, 2] = w, -x
+    out[..., 2, 0], out[..., 2, 1] = -y, x
+    return out
 
 
 def quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
