@@ -35,7 +35,7 @@ import numpy as np
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
                                        per_member, stack_episodes)
 from aligngym.estimators.strapdown import compensate
-from aligngym.models.attitude import (dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
+from aligngym.models.attitude import (cross, dcm_to_euler, dcm_to_quat, quat_cumprod, quat_mul,
                              quat_rotate, quat_to_dcm, rotvec_to_quat)
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import deg, deg_per_h, mg
@@ -132,7 +132,7 @@ def static_base_ins(dtheta: np.ndarray, dv: np.ndarray, dt: float, C_b_p0: np.nd
 
     # Velocity increments in p per sample (M, 3); the n-frame rotation over the sample.
     dv_p = quat_rotate(q_bp[:-1], dv_b)
-    dv_p -= 0.5 * dt * np.cross(omega, quat_rotate(q_bp[:-1], dv))
+    dv_p -= 0.5 * dt * cross(omega, quat_rotate(q_bp[:-1], dv))
     V_f = np.concatenate([np.zeros((1, 3)), np.cumsum(dv_p, axis=0)])
 
     idx = per_epoch * np.arange(K + 1)
@@ -508,9 +508,9 @@ def small_angle_dynamics(x: np.ndarray, C_b_n: np.ndarray, f_n: np.ndarray,
     phi_dot = -[omega_ie x] phi - C_b^n eps, dv_dot = ([f^n x] phi + C_b^n nabla)_EN."""
     phi = x[..., ALPHA]
     out = np.zeros(x.shape)
-    out[..., ALPHA] = -np.cross(omega_ie, phi) - _mv(C_b_n, x[..., EPS])
+    out[..., ALPHA] = -cross(omega_ie, phi) - _mv(C_b_n, x[..., EPS])
     b = C_b_n[..., :, 0] * x[..., 5:6] + C_b_n[..., :, 1] * x[..., 6:7]
-    out[..., DV] = (np.cross(f_n, phi) + b)[..., :2]
+    out[..., DV] = (cross(f_n, phi) + b)[..., :2]
     return out
 
 

@@ -140,9 +140,9 @@ def nearest_rotation(C: np.ndarray) -> np.ndarray:
 def triad(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     """Orthonormal triad (3, 3) with columns u1/|u1|, (u1 x u2)/|.|, and their cross."""
     a1 = u1 / np.linalg.norm(u1)
-    a2 = np.cross(u1, u2)
+    a2 = cross(u1, u2)
     a2 = a2 / np.linalg.norm(a2)
-    return np.stack([a1, a2, np.cross(a1, a2)], -1)
+    return np.stack([a1, a2, cross(a1, a2)], -1)
 
 
 def coarse_alignment_ib0(integrals: BodyFrameIntegrals, lat: float, h: float,
@@ -228,13 +228,13 @@ def velocity_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
     C_b_b0, alpha_all = _body_integrals(dtheta, dv)
     alpha = alpha_all[fix_index]
     if lever_arm_b is not None:
-        lever = np.cross(body_rate_at(dtheta, dt, fix_index), lever_arm_b)
+        lever = cross(body_rate_at(dtheta, dt, fix_index), lever_arm_b)
         alpha = alpha + np.einsum("kij,kj->ki", C_b_b0[fix_index], lever) - lever[0]
     # C_n(t)^n0 and the integral, fix to fix.
     t = fix_index * dt
     w_ie = earth_rate_n(lat)
     w_in = w_ie + transport_rate_n(lat, h, v_n)
-    integrand_n = np.cross(w_ie, v_n) - gravity_n(lat, h)
+    integrand_n = cross(w_ie, v_n) - gravity_n(lat, h)
     K = fix_index.size
     C_n_n0 = np.empty((K, 3, 3))
     C_n_n0[0] = np.eye(3)
@@ -292,7 +292,7 @@ def odometer_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
     if lever_arm_b is not None:
         turned = np.concatenate([np.zeros((1, 3)), np.cumsum(dtheta, axis=0)])
         rate = (turned[ahead] - turned[behind]) / span[:, None]
-        v_b = v_b + np.cross(rate, np.asarray(lever_arm_b, dtype=float))
+        v_b = v_b + cross(rate, np.asarray(lever_arm_b, dtype=float))
     w_ie = earth_rate_n(lat)
     C_n_n0 = rotvec_to_dcm(t[:, None] * w_ie)
     g_n0 = np.einsum("kij,j->ki", C_n_n0, gravity_n(lat, h))
@@ -307,6 +307,6 @@ def odometer_aided_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: float,
     displacement = cumulative(body_v)[pairs]                         # int C_b^b0 v^b
     C, residual = _wahba(gravity_part, alpha)
     for _ in range(iterations):
-        beta = gravity_part + np.cross(w_ie, displacement @ C.T)
+        beta = gravity_part + cross(w_ie, displacement @ C.T)
         C, residual = _wahba(beta, alpha)
     return C_n_n0[-1].T @ C @ C_b_b0[-1], residual

@@ -29,7 +29,8 @@ import numpy as np
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
                                        per_member, wrap_angle)
 from aligngym.estimators.strapdown import AidedInsInputs, body_rate_at
-from aligngym.models.attitude import (dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew)
+from aligngym.models.attitude import (cross, dcm_to_quat, quat_to_dcm, rotvec_to_dcm,
+                                      skew)
 from aligngym.models.earth import (C_n_e, OMEGA_IE, earth_rate_n, ecef_to_geodetic,
                           geodetic_to_ecef, normal_gravity, radii)
 
@@ -59,7 +60,7 @@ def ins_start_at_fix(C_b_n: np.ndarray, lat: float, lon: float, h: float, v_n: n
     if omega_bs_b is not None:
         w_b = w_b - omega_bs_b
     return {"q_b_n0": dcm_to_quat(C_b_n)[None],
-            "v_n0": (v_n - C_b_n @ np.cross(w_b, lever_arm_b))[None],
+            "v_n0": (v_n - C_b_n @ cross(w_b, lever_arm_b))[None],
             "lat0": np.array([lat - l_n[1] / (R_M + h)]),
             "lon0": np.array([lon - l_n[0] / ((R_N + h) * np.cos(lat))]),
             "h0": np.array([h - l_n[2]])}
@@ -190,7 +191,7 @@ class LooselyCoupledModel(FilterModel):
         l_b = self.inputs.lever_arm_b
         w_eb = self._w_eb(C_b_e)
         return (np.einsum("bij,bj->bi", C_b_e, l_b),
-                np.einsum("bij,bj->bi", C_b_e, np.cross(w_eb, l_b)))
+                np.einsum("bij,bj->bi", C_b_e, cross(w_eb, l_b)))
 
     def _gps(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """GPS antenna position and velocity in e and C_n^e at the fix, boundary k."""
@@ -279,7 +280,7 @@ class LooselyCoupledModel(FilterModel):
         if any(tu.heading_offset_b):
             w_eb = self._w_eb(C_b_e)
             v_track = v_track + np.einsum("bji,bj->bi", C_ne_g, np.einsum(
-                "bij,bj->bi", C_b_e, np.cross(w_eb, np.asarray(tu.heading_offset_b))))
+                "bij,bj->bi", C_b_e, cross(w_eb, np.asarray(tu.heading_offset_b))))
         psi_g = np.arctan2(v_track[:, 0], v_track[:, 1])
         use = (tu.use_heading & (speed_gps >= tu.heading_min_speed)
                & np.isfinite(inp.gps_heading_sigma[:, k + 1]))

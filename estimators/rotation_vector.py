@@ -23,7 +23,7 @@ from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Tr
                                        per_member)
 from aligngym.estimators.loose_gps import GpsInsInputs
 from aligngym.estimators.strapdown import body_rate_at
-from aligngym.models.attitude import dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
+from aligngym.models.attitude import cross, dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
 from aligngym.models.earth import (earth_rate_n, gravity_n, metres_per_geodetic, radii,
                           transport_rate_n)
 
@@ -103,9 +103,11 @@ def _position_rate(lat: np.ndarray, h: np.ndarray, v: np.ndarray) -> np.ndarray:
                      v[..., 2]], -1)
 
 
-def st_to_classic(x: np.ndarray, v_ins: np.ndarray) -> np.ndarray:
-    """x with dv_ST replaced by dv = (I - C_p^n) v~ + C_p^n dv_ST (6.3)."""
-    C_p_n = rotvec_to_dcm(x[..., PHI])
+def st_to_classic(x: np.ndarray, v_ins: np.ndarray, C_p_n: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """x with dv_ST replaced by dv = (I - C_p^n) v~ + C_p^n dv_ST (6.3); C_p_n: the DCM
+    of x's phi if already formed."""
+    C_p_n = rotvec_to_dcm(x[..., PHI]) if C_p_n is None else C_p_n
     out = np.array(x, dtype=float, copy=True)
     out[..., DV] = (v_ins - np.einsum("...ij,...j->...i", C_p_n, v_ins)
                     + np.einsum("...ij,...j->...i", C_p_n, x[..., DV]))
@@ -129,10 +131,10 @@ def _truth(x_classic: np.ndarray, q: InsQuantities):
 
 
 def _attitude_rate(x: np.ndarray, q: InsQuantities, w_ie_t: np.ndarray,
-                   w_en_t: np.ndarray) -> np.ndarray:
-    """(6.1): phi_dot = J_r^-1(phi) [omega^_in - C_n^p omega_in - C_b^p eps]."""
+                   w_en_t: np.ndarray, C_n_p: np.ndarray) -> np.ndarray:
+    """(6.1): phi_dot = J_r^-1(phi) [omega^_in - C_n^p omega_in - C_b^p eps]; C_n_p the
+    transpose of the DCM of x's phi."""
     w_ie, w_en, _ = q.rates()
-    C_n_p = np.swapaxes(rotvec_to_dcm(x[..., PHI]), -1, -2)
     omega_np = (w_ie + w_en - np.einsum("...ij,...j->...i", C_n_p, w_ie_t + w_en_t)
                 - np.einsum("...ij,...j->...i", q.C_b_p, x[..., EPS]))
     return np.einsum("...ij,...j->...i", J_r_inv(x[..., PHI]), omega_np)
@@ -141,19 +143,20 @@ def _attitude_rate(x: np.ndarray, q: InsQuantities, w_ie_t: np.ndarray,
 def st_derivative(x: np.ndarray, q: InsQuantities) -> np.ndarray:
     """x_dot (..., 15) of the transformed state [phi, dv_ST, dp, eps, nabla] ((6.1), (6.4),
     (6.5); the noise-free part): f~ does not appear, gravity does."""
-    xc = st_to_classic(x, q.v)
+    C_p_n = rotvec_to_dcm(x[..., PHI])
+    C_n_p = np.swapaxes(C_p_n, -1, -2)
+    xc = st_to_classic(x, q.v, C_p_n)
     lat_t, h_t, v_t, w_ie_t, w_en_t, g_t = _truth(xc, q)
     w_ie, w_en, g = q.rates()
-    C_n_p = np.swapaxes(rotvec_to_dcm(x[..., PHI]), -1, -2)
     mv = lambda A, b: np.einsum("...ij,...j->...i", A, b)  # noqa: E731
     eps_p = mv(q.C_b_p, x[..., EPS])
     out = np.zeros(np.broadcast_shapes(x.shape, q.v.shape[:-1] + (N_STATES,)))
-    out[..., PHI] = _attitude_rate(x, q, w_ie_t, w_en_t)
+    out[..., PHI] = _attitude_rate(x, q, w_ie_t, w_en_t, C_n_p)
     # dv_ST_dot = C_b^p nabla + g^ - C_n^p g - (w^_ie - C_n^p w_ie) x v~ + v~ x (C_b^p eps)
     #             - (w^_in + C_n^p w_ie - C_b^p eps) x dv_ST
     out[..., DV] = (mv(q.C_b_p, x[..., NABLA]) + g - mv(C_n_p, g_t)
-                    - np.cross(w_ie - mv(C_n_p, w_ie_t), q.v) + np.cross(q.v, eps_p)
-                    - np.cross(w_ie + w_en + mv(C_n_p, w_ie_t) - eps_p, x[..., DV]))
+                    - cross(w_ie - mv(C_n_p, w_ie_t), q.v) + cross(q.v, eps_p)
+                    - cross(w_ie + w_en + mv(C_n_p, w_ie_t) - eps_p, x[..., DV]))
     out[..., DP] = _position_rate(q.lat, q.h, q.v) - _position_rate(lat_t, h_t, v_t)
     return out
 
@@ -167,9 +170,9 @@ def classic_derivative(x: np.ndarray, q: InsQuantities) -> np.ndarray:
     mv = lambda A, b: np.einsum("...ij,...j->...i", A, b)  # noqa: E731
     f_p = mv(q.C_b_p, q.f_b)
     out = np.zeros(np.broadcast_shapes(x.shape, q.v.shape[:-1] + (N_STATES,)))
-    out[..., PHI] = _attitude_rate(x, q, w_ie_t, w_en_t)
+    out[..., PHI] = _attitude_rate(x, q, w_ie_t, w_en_t, np.swapaxes(C_p_n, -1, -2))
     out[..., DV] = (f_p - mv(C_p_n, f_p) + mv(C_p_n, mv(q.C_b_p, x[..., NABLA]))
-                    - np.cross(2 * w_ie + w_en, q.v) + np.cross(2 * w_ie_t + w_en_t, v_t)
+                    - cross(2 * w_ie + w_en, q.v) + cross(2 * w_ie_t + w_en_t, v_t)
                     + g - g_t)
     out[..., DP] = _position_rate(q.lat, q.h, q.v) - _position_rate(lat_t, h_t, v_t)
     return out
@@ -382,7 +385,7 @@ class RotationVectorGnssModel(FilterModel):
         w_nb = self._rate - w_bs - np.einsum("bji,bj->bi", C_b_p, w_ie + transport_rate_n(
             s.lat, s.h, s.v_n))
         lever_p = np.einsum("bij,bj->bi", C_b_p, l)                 # C_b^p l
-        lever_v = np.einsum("bij,bj->bi", C_b_p, np.cross(w_nb, l))  # C_b^p (w x l)
+        lever_v = np.einsum("bij,bj->bi", C_b_p, cross(w_nb, l))  # C_b^p (w x l)
         metres = metres_per_geodetic(s.lat, s.h)
         # z: INS antenna minus GNSS (ENU m/s, and m along E, N, U).
         z = np.full((self.batch, 6), np.nan)
@@ -436,7 +439,7 @@ class RotationVectorGnssModel(FilterModel):
         dv = (st_to_classic(x[b], s.v_n[b])[:, DV] if self.variant != "classic"
               else x[b, DV])
         if self.variant == "st-linear":     # (6.8)'s small-angle form
-            dv = x[b, DV] + np.cross(s.v_n[b], x[b, PHI])
+            dv = x[b, DV] + cross(s.v_n[b], x[b, PHI])
         C_b_n = rotvec_to_dcm(x[b, PHI]) @ self._C_b_p[b, k]
         s.q_b_n[b] = dcm_to_quat(C_b_n)
         self._C_b_p[b, k] = C_b_n
