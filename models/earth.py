@@ -57,17 +57,24 @@ def normal_gravity(lat: np.ndarray, h: np.ndarray | float = 0.0) -> np.ndarray:
     return gamma0 * (1.0 - 2.0 / A * (1.0 + F + _M - 2.0 * F * s2) * h + 3.0 * h ** 2 / A ** 2)
 
 
+def _vector(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(..., 3) from three components of one shape (``np.stack(..., -1)`` without its
+    per-call overhead)."""
+    out = np.empty(np.shape(x) + (3,))
+    out[..., 0], out[..., 1], out[..., 2] = x, y, z
+    return out
+
+
 def gravity_n(lat: np.ndarray, h: np.ndarray | float = 0.0) -> np.ndarray:
     """Normal gravity vector in ENU, (..., 3) m/s^2."""
     g = np.asarray(normal_gravity(lat, h))
-    z = np.zeros_like(g)
-    return np.stack([z, z, -g], -1)
+    return _vector(np.zeros_like(g), np.zeros_like(g), -g)
 
 
 def earth_rate_n(lat: np.ndarray) -> np.ndarray:
     """omega_ie^n, earth rate in ENU, (..., 3) rad/s."""
     lat = np.asarray(lat, dtype=float)
-    return np.stack([np.zeros_like(lat), OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)], -1)
+    return _vector(np.zeros_like(lat), OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat))
 
 
 def transport_rate_n(lat: np.ndarray, h: np.ndarray, v_n: np.ndarray) -> np.ndarray:
@@ -79,8 +86,7 @@ def transport_rate_n(lat: np.ndarray, h: np.ndarray, v_n: np.ndarray) -> np.ndar
     v_n = np.asarray(v_n, dtype=float)
     R_Mh = R_M + h
     R_Nh = R_N + h
-    return np.stack([-v_n[..., 1] / R_Mh, v_n[..., 0] / R_Nh,
-                     v_n[..., 0] * np.tan(lat) / R_Nh], -1)
+    return _vector(-v_n[..., 1] / R_Mh, v_n[..., 0] / R_Nh, v_n[..., 0] * np.tan(lat) / R_Nh)
 
 
 def C_n_e(lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
