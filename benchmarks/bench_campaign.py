@@ -32,9 +32,10 @@ def main() -> None:
           f"filter-independent stages): {one:.2f} s on one core (numba compilation "
           f"included); filters (all runs, batched): {filters:.1f} s; the rest is "
           f"preparation in parallel, metrics and process start-up")
-    for r in result.runs[:: len(experiment.starts)]:
-        print(f"  {r.filter:6s} {r.result.seconds_per_epoch * 1e3:.2f} ms per epoch for "
-              f"{len(result.seeds)} episodes")
+    for name in dict.fromkeys(r.filter for r in result.runs):
+        seconds = sum(r.result.seconds_per_epoch for r in result.runs if r.filter == name)
+        print(f"  {name:6s} {seconds * 1e3:.2f} ms per epoch for {len(result.seeds)} "
+              f"episodes from {len(experiment.starts)} start(s), one batch")
 
 
 if __name__ == "__main__":

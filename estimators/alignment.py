@@ -22,7 +22,8 @@ class FineResult:
     misalignment along E, N, U (Euler-error sigmas for Euler models); x (B, K+1, n)
     the state after feedback (with C_s_n and P: one consistent estimate); factors
     (B, K, k); diverged (B,), diverged_time (B,) s, diverged_reason; repairs (B,)
-    predicted covariances repaired; seconds_per_epoch: wall time per epoch for the batch;
+    predicted covariances repaired; seconds_per_epoch: wall time per epoch for these
+    episodes (a share of their batch's, ``batch_slice``; summed over thread chunks);
     series: the model's own time series (``FilterModel.series``) up to the same epoch.
     """
 

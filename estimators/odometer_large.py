@@ -86,7 +86,7 @@ class OdometerInputs(AidedInsInputs):
 
 def _cz(c: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Cz (..., 3, 3) = [[c, s, 0], [-s, c, 0], [0, 0, 1]]."""
-    out = np.zeros(np.shape(c) + (3, 3))
+    out = np.zeros(np.shape(c) + (3, 3), dtype=np.result_type(c, s))
     out[..., 0, 0], out[..., 0, 1] = c, s
     out[..., 1, 0], out[..., 1, 1] = -s, c
     out[..., 2, 2] = 1.0

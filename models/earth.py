@@ -94,7 +94,7 @@ def C_n_e(lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
     sL, cL = np.sin(lat), np.cos(lat)
     sl, cl = np.sin(lon), np.cos(lon)
     z = np.zeros_like(sL * sl)
-    C = np.empty(z.shape + (3, 3))
+    C = np.empty(z.shape + (3, 3), dtype=z.dtype)
     C[..., 0, 0], C[..., 0, 1], C[..., 0, 2] = -sl + z, -sL * cl, cL * cl
     C[..., 1, 0], C[..., 1, 1], C[..., 1, 2] = cl + z, -sL * sl, cL * sl
     C[..., 2, 0], C[..., 2, 1], C[..., 2, 2] = z, cL + z, sL + z

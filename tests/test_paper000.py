@@ -373,3 +373,13 @@ def test_paper000_bad_input(tmp_path):
         load_scenario(short_ring(tmp_path, extra="scale_error = 0.7"))
     with pytest.raises(ConfigError, match="--disturbance 'mud'; valid: none, slip, all"):
         Paper000Experiment(scenario=path, disturbance="mud").scenario_config()
+
+
+@pytest.mark.parametrize("starts", [(), ("coarse", "nowhere"), ("coarse", "coarse")])
+def test_starts_each_known_and_at_most_once(starts):
+    """A campaign runs each start once (one batch per filter): an empty, unknown or
+    repeated start is a one-line error before any episode is simulated."""
+    from aligngym.scenarios.experiments.paper000 import Paper000Experiment
+    exp = Paper000Experiment(starts=starts)
+    with pytest.raises(ConfigError, match="^starts = .*at most once$"):
+        exp.check(exp.scenario_config())

@@ -182,8 +182,10 @@ class Paper000Experiment(Experiment):
         if config.motion.has_gimbal:
             raise ConfigError("paper000 needs a strapdown IMU: motion.gimbal_outer_rate_deg_s "
                               "and gimbal_inner_rate_deg_s must be 0")
-        if not self.starts or set(self.starts) - set(STARTS):
-            raise ConfigError(f"starts = {self.starts}; valid: " + ", ".join(STARTS))
+        if (not self.starts or set(self.starts) - set(STARTS)
+                or len(set(self.starts)) != len(self.starts)):
+            raise ConfigError(f"starts = {self.starts}; valid: each of "
+                              + ", ".join(STARTS) + " at most once")
         if self.start_velocity not in START_VELOCITIES:
             raise ConfigError(f"start_velocity = {self.start_velocity!r}; valid: "
                               + ", ".join(START_VELOCITIES))
