@@ -84,22 +84,19 @@ class OdometerInputs(AidedInsInputs):
     lever_arm_b: np.ndarray
 
 
-def _cz(c: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Cz (..., 3, 3) = [[c, s, 0], [-s, c, 0], [0, 0, 1]]."""
-    out = np.zeros(np.shape(c) + (3, 3), dtype=np.result_type(c, s))
-    out[..., 0, 0], out[..., 0, 1] = c, s
-    out[..., 1, 0], out[..., 1, 1] = -s, c
-    out[..., 2, 2] = 1.0
-    return out
-
-
 def _matrix(like: np.ndarray, entries: dict[tuple[int, int], np.ndarray | float]
             ) -> np.ndarray:
-    """(..., 3, 3) zeros shaped like ``like`` (...,) with the given (row, column) entries."""
-    out = np.zeros(np.shape(like) + (3, 3))
+    """(..., 3, 3) zeros shaped like ``like`` (...,), in its float type, with the given
+    (row, column) entries."""
+    out = np.zeros(np.shape(like) + (3, 3), dtype=np.result_type(like, np.float16))
     for (i, j), value in entries.items():
         out[..., i, j] = value
     return out
+
+
+def _cz(c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Cz (..., 3, 3) = [[c, s, 0], [-s, c, 0], [0, 0, 1]]."""
+    return _matrix(c, {(0, 0): c, (0, 1): s, (1, 0): -s, (1, 1): c, (2, 2): 1.0})
 
 
 @dataclass

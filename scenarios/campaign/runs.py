@@ -77,8 +77,6 @@ def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
         from concurrent.futures import ThreadPoolExecutor
         with ThreadPoolExecutor(len(chunks)) as pool:
             result = concatenate_results(list(pool.map(run_chunk, chunks)))
-    if len(names) == 1:
-        return [analyse_run(name, names[0], result, episodes, experiment)]
     return [analyse_run(name, s, batch_slice(result, slice(k * B, (k + 1) * B)), episodes,
                         experiment) for k, s in enumerate(names)]
 
