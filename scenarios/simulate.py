@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -312,14 +313,29 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
     return dtheta, dv, realization
 
 
-def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
-    """A dynamic world (the car, the ship in waves; both at 500 Hz): MuJoCo's discrete
-    steps, the exact discrete IMU, and the world's odometer, GPS and encoders."""
+@dataclass(frozen=True)
+class _DynamicMotion:
+    """What a dynamic world's run gives every episode alike: the truth at the IMU interval
+    boundaries, the ideal increments of the IMU case (N, 3), the cross-track error at the
+    boundaries (or None), the rear wheels' angles there (N+1, 2, rad; None without wheels)
+    and the GNSS antenna's (t, position, velocity) at the fixes (or None)."""
+
+    truth: NavigationTruth
+    dtheta: np.ndarray
+    dv: np.ndarray
+    cross_track: np.ndarray | None
+    rear_wheels: np.ndarray | None
+    antenna: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+
+
+def _dynamic_motion(config: ScenarioConfig, rngs: dict[str, np.random.Generator]
+                    ) -> _DynamicMotion:
+    """A dynamic world's run from the episode's motion stream: MuJoCo's discrete steps and
+    the exact discrete IMU of the case (on its gimbal, turned by the odometer's mounting)."""
     from aligngym.models.attitude import euler_to_quat, quat_mul, quat_to_dcm
     from aligngym.models.truth import gravity_t, plane_truth
     from aligngym.models.world import SmoothRun
 
-    rngs = episode_rngs(seed)
     motion = config.motion
     world = make_dynamic_world(config, rngs)
     run = world.run(config.duration)
@@ -352,20 +368,69 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     idx = np.arange(m + 1) * k
     truth = plane_truth(plane, run.t[idx], site[idx], v_site[idx], run.quat[idx],
                         q_s_t[idx], gimbal[idx])
-    dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
-                                          truth.gimbal_angles)
-    extra = {} if run.cross_track is None else {"cross_track": run.cross_track[idx]}
+    antenna = None
+    if config.gps is not None:
+        g_idx = np.arange(0, run.t.size, int(round(1.0 / (config.gps.rate * run.dt))))
+        antenna = (run.t[g_idx], *run.point_kinematics(motion.gps_antenna_b, g_idx))
+    cross_track = None if run.cross_track is None else run.cross_track[idx]
+    wheels = None if run.wheel_angles is None else run.wheel_angles[idx][:, 2:4]
+    return _DynamicMotion(truth=truth, dtheta=dtheta, dv=dv, cross_track=cross_track,
+                          rear_wheels=wheels, antenna=antenna)
+
+
+SMOOTH_ROAD_RUNS = 4
+"""Smooth-road car runs kept per process (``_smooth_road_motion``): about 20 MB each
+for 600 s at 100 Hz."""
+_smooth_road_runs: OrderedDict[tuple, _DynamicMotion] = OrderedDict()
+
+
+def _smooth_road_motion(config: ScenarioConfig, rngs: dict[str, np.random.Generator]
+                        ) -> _DynamicMotion:
+    """``_dynamic_motion`` of the car on a smooth road, cached per process: with no road
+    heightfield the run does not depend on the episode, so every seed, ideal or not, has
+    the same truth. The key is everything the run reads of config; its arrays are made
+    read-only, so a caller that would modify them fails instead of changing the next
+    episode."""
+    odo, gps = config.odometer, config.gps
+    key = (config.motion, config.latitude, config.longitude, config.height, config.duration,
+           config.imu_rate, None if odo is None else (odo.mounting_pitch, odo.mounting_heading),
+           None if gps is None else gps.rate)
+    if key in _smooth_road_runs:
+        _smooth_road_runs.move_to_end(key)
+        return _smooth_road_runs[key]
+    shared = _dynamic_motion(config, rngs)
+    for array in (*vars(shared.truth).values(), shared.dtheta, shared.dv, shared.cross_track,
+                  shared.rear_wheels, *(shared.antenna or ())):
+        if isinstance(array, np.ndarray):
+            array.setflags(write=False)
+    _smooth_road_runs[key] = shared
+    while len(_smooth_road_runs) > SMOOTH_ROAD_RUNS:
+        _smooth_road_runs.popitem(last=False)
+    return shared
+
+
+def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:
+    """A dynamic world (the car, the ship in waves; both at 500 Hz): MuJoCo's discrete
+    steps, the exact discrete IMU, and the world's odometer, GPS and encoders."""
+    rngs = episode_rngs(seed)
+    motion = config.motion
+    if config.world == "car" and motion.roughness_rms == 0.0:
+        shared = _smooth_road_motion(config, rngs)
+    else:
+        shared = _dynamic_motion(config, rngs)
+    truth = shared.truth
+    dtheta, dv, realization = _imu_errors(config, rngs, shared.dtheta.copy(),
+                                          shared.dv.copy(), ideal, truth.gimbal_angles)
+    extra = {} if shared.cross_track is None else {"cross_track": shared.cross_track}
     imu_t, dtheta, dv, imu_faults = _faults(config, truth.t[1:], dtheta, dv)
     if config.odometer is not None:
         odo = config.odometer
         scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
         extra.update({"odo_t": truth.t, "odo_distance": odo.distance(
-            run.wheel_angles[idx][:, 2:4], scale, truth.t), "odo_scale_error": np.array(scale),
+            shared.rear_wheels, scale, truth.t), "odo_scale_error": np.array(scale),
             "odo_mounting": np.array([odo.mounting_pitch, odo.mounting_heading])})
-    if config.gps is not None:
-        g_idx = np.arange(0, run.t.size, int(round(1.0 / (config.gps.rate * run.dt))))
-        antenna, v_antenna = run.point_kinematics(motion.gps_antenna_b, g_idx)
-        extra.update(_gps_fixes(config, rngs["gps"], ideal, run.t[g_idx], antenna, v_antenna))
+    if shared.antenna is not None:
+        extra.update(_gps_fixes(config, rngs["gps"], ideal, *shared.antenna))
     encoder = config.encoder
     reading = (truth.gimbal_angles.copy() if ideal or not motion.has_gimbal else
                encoder.measure(truth.gimbal_angles, encoder.draw_offsets(rngs["encoder"])))

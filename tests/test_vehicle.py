@@ -41,6 +41,31 @@ def test_fidelity_rough_road_500hz_300s(name):
     assert err["position_m"] < 0.2
 
 
+def test_smooth_road_run_is_shared_by_every_seed_and_changes_nothing():
+    """With no road heightfield the car's MuJoCo run is the same for every episode, so it
+    is simulated once per process; each seed's sensor errors still differ, an episode
+    equals the one simulated afresh, nobody can modify the shared truth, and a rough
+    road gets its own run per seed."""
+    from aligngym.scenarios import simulate as sim
+
+    config = load_scenario("ring-road-odometer").with_options(duration=20.0)
+    sim._smooth_road_runs.clear()
+    first, second = simulate(config, seed=0), simulate(config, seed=1)
+    ideal = simulate(config, seed=1, ideal=True)
+    assert second.truth is first.truth and ideal.truth is first.truth
+    assert not np.array_equal(first.dtheta, second.dtheta)
+    with pytest.raises(ValueError, match="read-only"):
+        first.truth.v_n[0, 0] = 1.0
+    sim._smooth_road_runs.clear()
+    afresh = simulate(config, seed=1)
+    assert afresh.truth is not second.truth
+    for name, value in second.arrays().items():
+        np.testing.assert_array_equal(afresh.arrays()[name], value, err_msg=name)
+    bumpy = rough("ring-road-odometer", 6.0)
+    a, b = simulate(bumpy, seed=0), simulate(bumpy, seed=1)
+    assert not np.array_equal(a.truth.q_b_n, b.truth.q_b_n)
+
+
 def test_gps_error_statistics_and_heading_sigma():
     rng = np.random.default_rng(8)
     n = 20000
