@@ -23,6 +23,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.truth_cache import simulation_code_sha256
 
 SPLITS: dict[str, tuple[int, int]] = {"train": (0, 1_600_000_000),
                                       "validation": (1_600_000_000, 1_800_000_000),
@@ -76,24 +77,6 @@ def _numbers_as_floats(value):
     if isinstance(value, dict):
         return {k: _numbers_as_floats(v) for k, v in value.items()}
     return str(value)
-
-
-SIMULATION_SOURCES = ("models", "sensors", "estimators", "scenarios/experiments",
-                      "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py")
-"""The package's code that prepares an episode: any change to it is a new bank."""
-
-
-def simulation_code_sha256() -> str:
-    """A hash of ``SIMULATION_SOURCES`` (the .py files, in name order)."""
-    root = Path(__file__).resolve().parents[1]        # the package's source root
-    digest = hashlib.sha256()
-    for part in SIMULATION_SOURCES:
-        path = root / part
-        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
-        for f in files:
-            digest.update(str(f.relative_to(root)).encode())
-            digest.update(f.read_bytes())
-    return digest.hexdigest()
 
 
 def bank_key(experiment) -> dict:

@@ -15,6 +15,7 @@ from aligngym.models.ship import ShipWorld
 from aligngym.models.truth import NavigationTruth, imu_truth
 from aligngym.models.world import PrescribedWorld
 from aligngym.scenarios.config import PHYSICS_RATE, ConfigError, ScenarioConfig
+from aligngym.scenarios.truth_cache import cached_arrays
 from aligngym.sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
 
 # Truth is sampled at twice the IMU rate so that Simpson's rule integrates the increments.
@@ -281,19 +282,50 @@ def _prescribed_truth(world: PrescribedWorld, latitude: float, longitude: float,
 def _ship_truth(motion, latitude: float, longitude: float, height: float, duration: float,
                 imu_samples: int):
     """``_prescribed_truth`` of the prescribed ship, cached per process by its motion (a
-    scenario without random phases has one truth for every seed); callers must not
-    modify the arrays."""
-    return _prescribed_truth(ShipWorld(motion), latitude, longitude, height, duration,
-                             imu_samples)
+    scenario without random phases has one truth for every seed) and on disk
+    (``truth_cache``); read-only arrays."""
+    key = (motion, latitude, longitude, height, duration, imu_samples)
+    return _prescribed_cached("ship-prescribed", key, lambda: _prescribed_truth(
+        ShipWorld(motion), latitude, longitude, height, duration, imu_samples))
 
 
 @lru_cache(maxsize=4)
 def _static_truth(motion, latitude: float, longitude: float, height: float,
                   duration: float, imu_samples: int):
     """``_prescribed_truth`` of the static platform, cached per process (its truth does
-    not depend on the episode); callers must not modify the arrays."""
-    return _prescribed_truth(StaticPlatformWorld(motion), latitude, longitude, height,
-                             duration, imu_samples)
+    not depend on the episode) and on disk; read-only arrays."""
+    key = (motion, latitude, longitude, height, duration, imu_samples)
+    return _prescribed_cached("static-platform", key, lambda: _prescribed_truth(
+        StaticPlatformWorld(motion), latitude, longitude, height, duration, imu_samples))
+
+
+def _prescribed_cached(kind: str, key: tuple, compute):
+    """A prescribed world's (truth, imu_t, dtheta, dv, (antenna r, v)) through the truth
+    cache, its arrays made read-only."""
+    def arrays():
+        truth, imu_t, dtheta, dv, (r, v) = compute()
+        out = _truth_arrays(truth) | {"imu_t": imu_t, "dtheta": dtheta, "dv": dv}
+        return out | ({} if r is None else {"antenna_r": r, "antenna_v": v})
+    a = _read_only(cached_arrays(kind, key, arrays))
+    return (_truth_from(a), a["imu_t"], a["dtheta"], a["dv"],
+            (a.get("antenna_r"), a.get("antenna_v")))
+
+
+def _truth_arrays(truth: NavigationTruth) -> dict[str, np.ndarray]:
+    return {f"truth.{name}": value for name, value in vars(truth).items()
+            if value is not None}
+
+
+def _truth_from(arrays: dict[str, np.ndarray]) -> NavigationTruth:
+    return NavigationTruth(**{name[6:]: value for name, value in arrays.items()
+                              if name.startswith("truth.")})
+
+
+def _read_only(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """arrays with each made read-only (shared between episodes: nobody may modify them)."""
+    for value in arrays.values():
+        value.setflags(write=False)
+    return arrays
 
 
 def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
@@ -384,25 +416,46 @@ for 600 s at 100 Hz."""
 _smooth_road_runs: OrderedDict[tuple, _DynamicMotion] = OrderedDict()
 
 
+def _motion_key(config: ScenarioConfig) -> tuple:
+    """Everything a dynamic world's run (``_dynamic_motion``) reads of config but the
+    episode's random streams."""
+    odo, gps = config.odometer, config.gps
+    return (config.world, config.motion, config.latitude, config.longitude, config.height,
+            config.duration, config.imu_rate,
+            None if odo is None else (odo.mounting_pitch, odo.mounting_heading),
+            None if gps is None else gps.rate)
+
+
+def _cached_motion(kind: str, key: tuple, compute) -> _DynamicMotion:
+    """A dynamic world's run through the truth cache, its arrays made read-only."""
+    def arrays():
+        shared = compute()
+        out = _truth_arrays(shared.truth) | {"dtheta": shared.dtheta, "dv": shared.dv}
+        for name in ("cross_track", "rear_wheels"):
+            if getattr(shared, name) is not None:
+                out[name] = getattr(shared, name)
+        if shared.antenna is not None:
+            out.update(zip(("antenna_t", "antenna_r", "antenna_v"), shared.antenna))
+        return out
+    a = _read_only(cached_arrays(kind, key, arrays))
+    antenna = ((a["antenna_t"], a["antenna_r"], a["antenna_v"]) if "antenna_t" in a
+               else None)
+    return _DynamicMotion(truth=_truth_from(a), dtheta=a["dtheta"], dv=a["dv"],
+                          cross_track=a.get("cross_track"), rear_wheels=a.get("rear_wheels"),
+                          antenna=antenna)
+
+
 def _smooth_road_motion(config: ScenarioConfig, rngs: dict[str, np.random.Generator]
                         ) -> _DynamicMotion:
-    """``_dynamic_motion`` of the car on a smooth road, cached per process: with no road
-    heightfield the run does not depend on the episode, so every seed, ideal or not, has
-    the same truth. The key is everything the run reads of config; its arrays are made
-    read-only, so a caller that would modify them fails instead of changing the next
-    episode."""
-    odo, gps = config.odometer, config.gps
-    key = (config.motion, config.latitude, config.longitude, config.height, config.duration,
-           config.imu_rate, None if odo is None else (odo.mounting_pitch, odo.mounting_heading),
-           None if gps is None else gps.rate)
+    """``_dynamic_motion`` of the car on a smooth road, cached per process and on disk
+    (``truth_cache``): with no road heightfield the run does not depend on the episode,
+    so every seed, ideal or not, has the same truth. Its arrays are read-only, so a
+    caller that would modify them fails instead of changing the next episode."""
+    key = _motion_key(config)
     if key in _smooth_road_runs:
         _smooth_road_runs.move_to_end(key)
         return _smooth_road_runs[key]
-    shared = _dynamic_motion(config, rngs)
-    for array in (*vars(shared.truth).values(), shared.dtheta, shared.dv, shared.cross_track,
-                  shared.rear_wheels, *(shared.antenna or ())):
-        if isinstance(array, np.ndarray):
-            array.setflags(write=False)
+    shared = _cached_motion("car-smooth-road", key, lambda: _dynamic_motion(config, rngs))
     _smooth_road_runs[key] = shared
     while len(_smooth_road_runs) > SMOOTH_ROAD_RUNS:
         _smooth_road_runs.popitem(last=False)
@@ -416,8 +469,9 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     motion = config.motion
     if config.world == "car" and motion.roughness_rms == 0.0:
         shared = _smooth_road_motion(config, rngs)
-    else:
-        shared = _dynamic_motion(config, rngs)
+    else:   # the road's heightfield or the sea is drawn from the seed's motion stream
+        shared = _cached_motion(f"{config.world}-seeded", (*_motion_key(config), seed),
+                                lambda: _dynamic_motion(config, rngs))
     truth = shared.truth
     dtheta, dv, realization = _imu_errors(config, rngs, shared.dtheta.copy(),
                                           shared.dv.copy(), ideal, truth.gimbal_angles)

@@ -1,0 +1,112 @@
+"""The truth cache (``scenarios.truth_cache``): another process loads what one simulated,
+the same episode bit for bit; a damaged entry is simulated again; a cache that cannot be
+written is reported once; processes needing one entry at once simulate it once; the
+least recently used entries go first."""
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pytest
+
+from aligngym.scenarios import simulate as sim
+from aligngym.scenarios import truth_cache
+from aligngym.scenarios.config import load_scenario
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, str(tmp_path / "truth"))
+    sim._ship_truth.cache_clear()               # the per-process level: only the disk's
+    yield tmp_path / "truth"
+    sim._ship_truth.cache_clear()
+
+
+def ship(duration=20.0):
+    return load_scenario("ship-sway-rotary").with_options(duration=duration)
+
+
+def same(a, b):
+    for name, value in a.arrays().items():
+        np.testing.assert_array_equal(b.arrays()[name], value, err_msg=name)
+
+
+def no_simulation(*args, **kwargs):
+    raise AssertionError("simulated although the cache holds the truth")
+
+
+def test_an_entry_is_loaded_instead_of_simulated_and_gives_the_same_episode(cache,
+                                                                           monkeypatch):
+    first = sim.simulate(ship(), seed=3)
+    assert len(list(cache.glob("ship-prescribed-*.npz"))) == 1
+    sim._ship_truth.cache_clear()
+    monkeypatch.setattr(sim, "_prescribed_truth", no_simulation)
+    same(first, sim.simulate(ship(), seed=3))
+    with pytest.raises(ValueError, match="read-only"):
+        sim.simulate(ship(), seed=3).truth.q_b_n[0, 0] = 1.0
+
+
+def test_a_damaged_entry_is_simulated_again(cache):
+    first = sim.simulate(ship(), seed=4)
+    (entry,) = cache.glob("*.npz")
+    entry.write_bytes(entry.read_bytes()[:1000])          # cut short, as by a full disk
+    sim._ship_truth.cache_clear()
+    same(first, sim.simulate(ship(), seed=4))
+    with np.load(entry) as f:
+        assert "dtheta" in f.files                         # written whole again
+
+
+def test_a_cache_that_cannot_be_written_is_reported_once(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, str(blocker / "truth"))
+    monkeypatch.setattr(truth_cache, "_reported", set())
+    sim._ship_truth.cache_clear()
+    with pytest.warns(RuntimeWarning, match="cannot be written.*simulating without it"):
+        first = sim.simulate(ship(), seed=5)
+    sim._ship_truth.cache_clear()
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        again = sim.simulate(ship(), seed=5)
+    same(first, again)
+    sim._ship_truth.cache_clear()
+
+
+def test_off_and_another_code_version_use_no_entry(cache, monkeypatch):
+    assert truth_cache.cache_directory() == cache
+    name = truth_cache.entry_name("k", (1.0, "x"))
+    monkeypatch.setattr(truth_cache, "_versions", lambda: "another simulation code")
+    assert truth_cache.entry_name("k", (1.0, "x")) != name
+    monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, "off")
+    assert truth_cache.cache_directory() is None
+    assert truth_cache.cached_arrays("k", (1,), lambda: {"a": np.ones(2)})["a"].sum() == 2
+    assert not cache.exists()
+
+
+def _slow_entry(folder: str, log: str) -> float:
+    os.environ[truth_cache.TRUTH_CACHE_ENV] = folder
+
+    def compute():
+        with open(log, "a") as f:
+            f.write("computed\n")
+        time.sleep(0.5)
+        return {"a": np.arange(3.0)}
+    return float(truth_cache.cached_arrays("slow", (1,), compute)["a"].sum())
+
+
+def test_processes_needing_one_entry_at_once_simulate_it_once(tmp_path):
+    log = tmp_path / "log"
+    with ProcessPoolExecutor(2) as pool:
+        sums = list(pool.map(_slow_entry, [str(tmp_path / "truth")] * 2, [str(log)] * 2))
+    assert sums == [3.0, 3.0]
+    assert log.read_text().count("computed") == 1
+
+
+def test_the_least_recently_used_entries_go_first(tmp_path):
+    for k, name in enumerate(("old", "mid", "new")):
+        path = tmp_path / f"{name}.npz"
+        path.write_bytes(b"x" * 100)
+        os.utime(path, (1000.0 + k, 1000.0 + k))
+    truth_cache._trim(tmp_path, limit=250)
+    assert sorted(p.stem for p in tmp_path.glob("*.npz")) == ["mid", "new"]
