@@ -175,6 +175,9 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
                        "(default: none)")
     bench.add_argument("--json", metavar="FILE",
                        help="write the summary as JSON (default: none)")
+    bench.add_argument("--no-figures", action="store_true",
+                       help="with --out: leave out the PNG figures (the numbers and the "
+                       "report page without them; default: draw them)")
     bench.add_argument("--resume", action="store_true",
                        help="reuse the episodes already finished in --out")
     bench.add_argument("--force", action="store_true",
@@ -367,7 +370,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             elapsed += time.perf_counter() - start
             print(format_tables(result))
             written = write_outputs(result, out, args.json if level is None else None,
-                                    command=args.command_line)
+                                    command=args.command_line, figures=not args.no_figures)
         for path in written:
             print(f"wrote {path}")
         summaries.append(result.summary())

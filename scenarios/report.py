@@ -78,13 +78,13 @@ def campaign_settings(result: CampaignResult, command: list[str] | None = None) 
 
 
 def write_outputs(result: CampaignResult, out_dir: str | Path | None,
-                  json_path: str | Path | None, command: list[str] | None = None
-                  ) -> list[Path]:
+                  json_path: str | Path | None, command: list[str] | None = None,
+                  figures: bool = True) -> list[Path]:
     """Write to out_dir results.csv, coarse.csv (experiments with a coarse stage),
     timeseries.npz, tables.txt (``format_tables``), summary.json (the JSON summary),
     settings.json (``campaign_settings``; command: the command line, for the record), the
-    campaign figures (``scenarios.figures``) and the experiment's own (PNG); and the JSON
-    summary to json_path. Returns the paths written."""
+    campaign figures (``scenarios.figures``) and the experiment's own (PNG; figures=False
+    leaves them out); and the JSON summary to json_path. Returns the paths written."""
     written = []
     if json_path is not None:
         path = Path(json_path)
@@ -123,6 +123,7 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     written += [write_text(out / "tables.txt", format_tables(result) + "\n"),
                 write_json(out / "summary.json", result.summary()),
                 write_json(out / "settings.json", campaign_settings(result, command))]
-    written += write_figures(result, out)
-    written += result.experiment.plots(result, out)
+    if figures:
+        written += write_figures(result, out)
+        written += result.experiment.plots(result, out)
     return written

@@ -12,7 +12,7 @@ import numpy as np
 from aligngym.scenarios.regress import flatten
 
 ARGS = ["bench", "paper002", "--episodes", "8", "--filters", "ekf", "--workers", "2",
-        "--seed", "9"]
+        "--seed", "9", "--no-figures"]
 
 
 def aligngym(*args: str) -> list[str]:

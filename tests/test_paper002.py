@@ -232,7 +232,7 @@ def test_small_angle_kf_does_not_converge_from_58_deg(large_azimuth):
 def test_bench_paper002_json_and_resume(tmp_path):
     out = tmp_path / "b"
     args = ["bench", "paper002", "--episodes", "2", "--filters", "ekf,sghkf-2", "--out",
-            str(out), "--workers", "1"]
+            str(out), "--workers", "1", "--no-figures"]
     assert main(args + ["--json", str(tmp_path / "a.json")]) == 0
     summary = json.loads((tmp_path / "a.json").read_text())
     assert set(summary) == {"fine", "data_faults"}

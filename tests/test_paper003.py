@@ -139,7 +139,7 @@ def test_campaign_outputs_and_json_shape(sway_campaign, tmp_path):
 # The campaign directory's handling is under test, not the alignment: a 30 s coarse
 # stage and 60 s of fine alignment (bench --set).
 FAST = ["--set", "fine_duration=60", "--set", "coarse_duration=30", "--set", "t_k1=10",
-        "--set", "t_k2=30"]
+        "--set", "t_k2=30", "--no-figures"]
 
 
 def test_resume_keeps_finished_episodes(tmp_path):

@@ -40,7 +40,8 @@ def quick(**settings):
 
 def bench_argv(out, *extra, episodes=3):
     return ["bench", "paper002", "--episodes", str(episodes), "--filters", "ekf",
-            "--set", "fine_duration=30", "--workers", "1", "--out", str(out), *extra]
+            "--set", "fine_duration=30", "--workers", "1", "--no-figures", "--out", str(out),
+            *extra]
 
 
 def cli(*args):

@@ -312,6 +312,27 @@ def test_bench_out_is_self_describing_and_reported(tmp_path, capsys):
     assert (out / "report.html").stat().st_size > 10_000
 
 
+def test_no_figures_leaves_out_the_pngs_only(tmp_path):
+    """bench --no-figures: every other output, the same numbers, no PNG; the report page
+    is still made."""
+    base = ["bench", "paper002", "--episodes", "1", "--filters", "ekf", "--workers", "1",
+            "--set", "fine_duration=30"]
+    drawn, bare = tmp_path / "drawn", tmp_path / "bare"
+    assert main(base + ["--out", str(drawn)]) == 0
+    assert main(base + ["--out", str(bare), "--no-figures"]) == 0
+    assert list(drawn.glob("*.png")) and not list(bare.glob("*.png"))
+    assert {p.name for p in drawn.iterdir() if p.suffix != ".png"} == \
+        {p.name for p in bare.iterdir()}
+    import csv
+
+    def rows(folder):                    # the numbers, without the measured ms/epoch
+        with open(folder / "results.csv") as f:
+            return [{k: v for k, v in row.items() if k != "ms_per_epoch"}
+                    for row in csv.DictReader(f)]
+    assert rows(bare) == rows(drawn)
+    assert main(["report", str(bare)]) == 0 and (bare / "report.html").is_file()
+
+
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",
