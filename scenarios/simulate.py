@@ -416,18 +416,19 @@ for 600 s at 100 Hz."""
 _smooth_road_runs: OrderedDict[tuple, _DynamicMotion] = OrderedDict()
 
 
-def _motion_key(config: ScenarioConfig) -> tuple:
+def _motion_key(config: ScenarioConfig, any_duration: bool = False) -> tuple:
     """Everything a dynamic world's run (``_dynamic_motion``) reads of config but the
-    episode's random streams."""
+    episode's random streams (any_duration: "any" in place of the duration)."""
     odo, gps = config.odometer, config.gps
     return (config.world, config.motion, config.latitude, config.longitude, config.height,
-            config.duration, config.imu_rate,
+            "any" if any_duration else config.duration, config.imu_rate,
             None if odo is None else (odo.mounting_pitch, odo.mounting_heading),
             None if gps is None else gps.rate)
 
 
-def _cached_motion(kind: str, key: tuple, compute) -> _DynamicMotion:
-    """A dynamic world's run through the truth cache, its arrays made read-only."""
+def _cached_motion(kind: str, key: tuple, compute, usable=None) -> _DynamicMotion:
+    """A dynamic world's run through the truth cache, its arrays made read-only (usable:
+    ``truth_cache.cached_arrays``'s)."""
     def arrays():
         shared = compute()
         out = _truth_arrays(shared.truth) | {"dtheta": shared.dtheta, "dv": shared.dv}
@@ -437,7 +438,7 @@ def _cached_motion(kind: str, key: tuple, compute) -> _DynamicMotion:
         if shared.antenna is not None:
             out.update(zip(("antenna_t", "antenna_r", "antenna_v"), shared.antenna))
         return out
-    a = _read_only(cached_arrays(kind, key, arrays))
+    a = _read_only(cached_arrays(kind, key, arrays, usable))
     antenna = ((a["antenna_t"], a["antenna_r"], a["antenna_v"]) if "antenna_t" in a
                else None)
     return _DynamicMotion(truth=_truth_from(a), dtheta=a["dtheta"], dv=a["dv"],
@@ -445,21 +446,47 @@ def _cached_motion(kind: str, key: tuple, compute) -> _DynamicMotion:
                           antenna=antenna)
 
 
+def _prefix(shared: _DynamicMotion, config: ScenarioConfig) -> _DynamicMotion:
+    """The first config.duration of a longer run: the run of that duration bit for bit
+    (MuJoCo steps and the driver do not look ahead, and the IMU and truth pipeline works
+    sample by sample)."""
+    m = config.imu_samples
+    if shared.dtheta.shape[0] == m:
+        return shared
+    cut = slice(0, m + 1)
+    antenna = shared.antenna
+    if antenna is not None:      # the fixes at the physics steps the shorter run makes
+        dt = 1.0 / PHYSICS_RATE["car"]
+        last = np.arange(int(round(config.duration / dt)) + 1)[-1:] * dt
+        antenna = tuple(a[: int(np.searchsorted(antenna[0], last[0], "right"))]
+                        for a in antenna)
+    return _DynamicMotion(truth=shared.truth.take(cut), dtheta=shared.dtheta[:m],
+                          dv=shared.dv[:m], antenna=antenna,
+                          cross_track=None if shared.cross_track is None
+                          else shared.cross_track[cut],
+                          rear_wheels=None if shared.rear_wheels is None
+                          else shared.rear_wheels[cut])
+
+
 def _smooth_road_motion(config: ScenarioConfig, rngs: dict[str, np.random.Generator]
                         ) -> _DynamicMotion:
     """``_dynamic_motion`` of the car on a smooth road, cached per process and on disk
     (``truth_cache``): with no road heightfield the run does not depend on the episode,
-    so every seed, ideal or not, has the same truth. Its arrays are read-only, so a
-    caller that would modify them fails instead of changing the next episode."""
-    key = _motion_key(config)
-    if key in _smooth_road_runs:
-        _smooth_road_runs.move_to_end(key)
-        return _smooth_road_runs[key]
-    shared = _cached_motion("car-smooth-road", key, lambda: _dynamic_motion(config, rngs))
-    _smooth_road_runs[key] = shared
+    so every seed, ideal or not, has the same truth, and a shorter run is the start of a
+    longer one (``_prefix``): one run per motion, the longest asked for. Its arrays are
+    read-only, so a caller that would modify them fails instead of changing the next
+    episode."""
+    key = _motion_key(config, any_duration=True)
+    m = config.imu_samples
+    held = _smooth_road_runs.get(key)
+    if held is None or held.dtheta.shape[0] < m:
+        held = _cached_motion("car-smooth-road", key, lambda: _dynamic_motion(config, rngs),
+                              usable=lambda arrays: arrays["dtheta"].shape[0] >= m)
+        _smooth_road_runs[key] = held
+    _smooth_road_runs.move_to_end(key)
     while len(_smooth_road_runs) > SMOOTH_ROAD_RUNS:
         _smooth_road_runs.popitem(last=False)
-    return shared
+    return _prefix(held, config)
 
 
 def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode:

@@ -79,20 +79,26 @@ def entry_name(kind: str, key: tuple) -> str:
     return f"{kind}-{digest[:24]}.npz"
 
 
-def cached_arrays(kind: str, key: tuple, compute: Callable[[], dict[str, np.ndarray]]
+def cached_arrays(kind: str, key: tuple, compute: Callable[[], dict[str, np.ndarray]],
+                  usable: Callable[[dict[str, np.ndarray]], bool] | None = None
                   ) -> dict[str, np.ndarray]:
     """The arrays compute() returns for key, loaded from the cache if it holds them, else
-    computed and stored (kind names the simulation, e.g. "car-smooth-road")."""
+    computed and stored (kind names the simulation, e.g. "car-smooth-road"). usable: an
+    entry it refuses (say, a run too short) is computed again and replaced."""
     folder = cache_directory()
     if folder is None or " at 0x" in repr(key):  # no cache, or a key that prints no value
         return compute()
     path = folder / entry_name(kind, key)
-    arrays = _load(path)
+
+    def load():
+        arrays = _load(path)
+        return arrays if arrays is not None and (usable is None or usable(arrays)) else None
+    arrays = load()
     if arrays is not None:
         return arrays
     with _entry_lock(folder, path) as locked:
         # Another process may have written it while this one waited for the lock.
-        arrays = _load(path) if locked else None
+        arrays = load() if locked else None
         if arrays is None:
             arrays = compute()
             _store(folder, path, arrays)
