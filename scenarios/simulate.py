@@ -15,8 +15,10 @@ from aligngym.models.ship import ShipWorld
 from aligngym.models.truth import NavigationTruth, imu_truth
 from aligngym.models.world import PrescribedWorld
 from aligngym.scenarios.config import PHYSICS_RATE, ConfigError, ScenarioConfig
-from aligngym.scenarios.truth_cache import cached_arrays
+from aligngym.scenarios.truth_cache import cached_arrays, remember_code
 from aligngym.sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
+
+remember_code()   # the code this process simulates with labels its truth-cache entries
 
 # Truth is sampled at twice the IMU rate so that Simpson's rule integrates the increments.
 TRUTH_OVERSAMPLING = 2
@@ -26,7 +28,9 @@ TRUTH_OVERSAMPLING = 2
 class Episode:
     """One simulated run. truth: at the IMU interval boundaries (M+1 samples);
     imu_t (M,) s; dtheta (M, 3) rad, dv (M, 3) m/s in the sensor frame;
-    gimbal_encoder (M+1, 2) rad; imu_realization: the drawn errors (None when ideal)."""
+    gimbal_encoder (M+1, 2) rad; imu_realization: the drawn errors (None when ideal).
+    The truth (and the arrays taken from it, such as imu_t and extra's odo_t) may be
+    shared with other episodes of the same motion: read-only; copy it to modify it."""
 
     config: ScenarioConfig
     seed: int
@@ -347,7 +351,8 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
 
 @dataclass(frozen=True)
 class _DynamicMotion:
-    """What a dynamic world's run gives every episode alike: the truth at the IMU interval
+    """What a dynamic world's run gives its episodes (every seed alike on a smooth road,
+    one seed on a rough road or a random sea): the truth at the IMU interval
     boundaries, the ideal increments of the IMU case (N, 3), the cross-track error at the
     boundaries (or None), the rear wheels' angles there (N+1, 2, rad; None without wheels)
     and the GNSS antenna's (t, position, velocity) at the fixes (or None)."""
@@ -411,8 +416,8 @@ def _dynamic_motion(config: ScenarioConfig, rngs: dict[str, np.random.Generator]
 
 
 SMOOTH_ROAD_RUNS = 4
-"""Smooth-road car runs kept per process (``_smooth_road_motion``): about 20 MB each
-for 600 s at 100 Hz."""
+"""Smooth-road car runs kept per process (``_smooth_road_motion``): 12.6 MB each for
+600 s at 100 Hz."""
 _smooth_road_runs: OrderedDict[tuple, _DynamicMotion] = OrderedDict()
 
 
@@ -497,7 +502,7 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     if config.world == "car" and motion.roughness_rms == 0.0:
         shared = _smooth_road_motion(config, rngs)
     else:   # the road's heightfield or the sea is drawn from the seed's motion stream
-        shared = _cached_motion(f"{config.world}-seeded", (*_motion_key(config), seed),
+        shared = _cached_motion(f"{config.world}-seeded", (*_motion_key(config), int(seed)),
                                 lambda: _dynamic_motion(config, rngs))
     truth = shared.truth
     dtheta, dv, realization = _imu_errors(config, rngs, shared.dtheta.copy(),

@@ -1,4 +1,4 @@
-"""The truth cache: a simulation's seed-independent part, kept on disk for other processes.
+"""The truth cache: what MuJoCo computes of an episode, kept on disk for other processes.
 
 The part of an episode that MuJoCo computes (the carrier's truth and the ideal IMU
 increments) often repeats: every seed of a car on a smooth road, or of a prescribed ship
@@ -10,8 +10,9 @@ of simulating them.
 Entries live in ``$ALIGNGYM_TRUTH_CACHE`` (default ``$XDG_CACHE_HOME/aligngym/truth``,
 else ``~/.cache/aligngym/truth``; ``off`` disables the cache), one .npz per entry, named
 by a hash of what decides it: the simulation's inputs, the simulation code
-(``simulation_code_sha256``) and the versions of MuJoCo and NumPy, so a changed
-simulation never loads an old entry. An entry is written whole or not at all
+(``simulation_code_sha256``, taken when the process loaded it) and the versions of
+MuJoCo, NumPy, SciPy and the machine's architecture, so a changed simulation never loads
+an old entry (edit the code between runs, not during one). An entry is written whole or not at all
 (``atomic``); one that does not load is removed and simulated again; a cache that cannot
 be written (a full disk, no permission) is reported once and the run goes on without it.
 The directory is kept under ``TRUTH_CACHE_BYTES`` by removing the least recently used
@@ -33,8 +34,11 @@ import numpy as np
 TRUTH_CACHE_ENV = "ALIGNGYM_TRUTH_CACHE"
 """Environment variable naming the cache's directory ("off": no cache)."""
 TRUTH_CACHE_BYTES = 2 * 1024 ** 3
-"""Most bytes the cache keeps (about 100 car runs of 600 s at 100 Hz)."""
+"""Most bytes the cache keeps (about 160 car runs of 600 s at 100 Hz, 12.6 MB each)."""
+FREE_BYTES_KEPT = 5 * 1024 ** 3
+"""The cache is not written where the disk would keep less than this free."""
 _reported: set[str] = set()
+"""Cache directories this process found unwritable (reported once, not tried again)."""
 
 
 def cache_directory() -> Path | None:
@@ -50,7 +54,8 @@ def cache_directory() -> Path | None:
 
 SIMULATION_SOURCES = ("models", "sensors", "estimators", "scenarios/experiments",
                       "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py")
-"""The package's code that prepares an episode: any change to it is a new bank."""
+"""The package's code that prepares an episode: any change to it is a new bank and new
+truth entries."""
 
 
 def simulation_code_sha256() -> str:
@@ -66,15 +71,35 @@ def simulation_code_sha256() -> str:
     return digest.hexdigest()
 
 
+_CODE_SHA256: str | None = None
+"""The simulation code's hash when the first simulation module was loaded
+(``remember_code``): the code a process runs, even if the files change under it."""
+
+
+def remember_code() -> None:
+    """Hash the simulation code now (``scenarios.simulate`` calls it when imported, so
+    forked workers inherit it): editing the files during a run cannot label old numbers
+    with the new code's hash."""
+    global _CODE_SHA256
+    if _CODE_SHA256 is None:
+        _CODE_SHA256 = simulation_code_sha256()
+
+
 @lru_cache(maxsize=1)
 def _versions() -> str:
+    import platform
+
     import mujoco
-    return f"{simulation_code_sha256()} mujoco {mujoco.__version__} numpy {np.__version__}"
+    import scipy
+    remember_code()
+    return (f"{_CODE_SHA256} mujoco {mujoco.__version__} numpy {np.__version__} "
+            f"scipy {scipy.__version__} {platform.machine()}")
 
 
 def entry_name(kind: str, key: tuple) -> str:
-    """The entry's file name: kind and a hash of key (its repr: dataclasses and floats
-    print every digit) with the code and library versions."""
+    """The entry's file name: kind and a hash of key (its repr: dataclasses, tuples and
+    floats print every digit; ``cached_arrays`` does not cache a key holding an array)
+    with the code and library versions."""
     digest = hashlib.sha256(f"{kind} {key!r} {_versions()}".encode()).hexdigest()
     return f"{kind}-{digest[:24]}.npz"
 
@@ -86,7 +111,8 @@ def cached_arrays(kind: str, key: tuple, compute: Callable[[], dict[str, np.ndar
     computed and stored (kind names the simulation, e.g. "car-smooth-road"). usable: an
     entry it refuses (say, a run too short) is computed again and replaced."""
     folder = cache_directory()
-    if folder is None or " at 0x" in repr(key):  # no cache, or a key that prints no value
+    text = repr(key)
+    if folder is None or " at 0x" in text or "array(" in text:   # no value printed whole
         return compute()
     path = folder / entry_name(kind, key)
 
@@ -106,17 +132,26 @@ def cached_arrays(kind: str, key: tuple, compute: Callable[[], dict[str, np.ndar
 
 
 def _load(path: Path) -> dict[str, np.ndarray] | None:
-    """The entry's arrays, or None if it is absent or damaged (then removed)."""
-    if not path.exists():
-        return None
+    """The entry's arrays, or None if it is absent, unreadable or damaged (a damaged one
+    is removed where the cache can be written)."""
     try:
         with np.load(path) as f:
             arrays = {name: f[name] for name in f.files}
-        os.utime(path)                         # recently used: kept by the trimming
-        return arrays
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError):
-        path.unlink(missing_ok=True)
+    except FileNotFoundError:
         return None
+    except (ValueError, EOFError, zipfile.BadZipFile, KeyError):   # its content is bad
+        try:
+            path.unlink(missing_ok=True)
+        except OSError:
+            pass
+        return None
+    except OSError:                      # unreadable (permissions, I/O): not its content
+        return None
+    try:
+        os.utime(path)                   # recently used: kept by the trimming
+    except OSError:                      # another user's entry, a read-only cache
+        pass
+    return arrays
 
 
 @contextmanager
@@ -124,15 +159,19 @@ def _entry_lock(folder: Path, path: Path) -> Iterator[bool]:
     """Hold the entry's lock file while it is computed, so that processes needing the
     same entry at once simulate it once (the others wait, then load it); yields whether
     the lock is held (False when the cache's directory cannot be written)."""
-    import fcntl
     try:
+        import fcntl
         folder.mkdir(parents=True, exist_ok=True)
         handle = open(path.with_suffix(".lock"), "a")
-    except OSError:
+    except (ImportError, OSError):       # no flock here, or the directory is read-only
         yield False
         return
     with handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError:                  # a file system without locks (ENOLCK)
+            yield False
+            return
         try:
             yield True
         finally:
@@ -140,25 +179,36 @@ def _entry_lock(folder: Path, path: Path) -> Iterator[bool]:
 
 
 def _store(folder: Path, path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write the entry atomically and trim the cache; on failure report it once."""
+    """Write the entry atomically and trim the cache. A cache that cannot be written, or
+    whose disk would keep less than ``FREE_BYTES_KEPT`` free, is reported once and not
+    written again by this process."""
+    import shutil
+
     from aligngym.scenarios.atomic import atomic_path
+    if str(folder) in _reported:
+        return
     try:
         folder.mkdir(parents=True, exist_ok=True)
+        size = sum(a.nbytes for a in arrays.values())
+        if shutil.disk_usage(folder).free - size < FREE_BYTES_KEPT:
+            raise OSError(f"less than {FREE_BYTES_KEPT / 1e9:g} GB would stay free")
         with atomic_path(path) as tmp:
             np.savez(tmp, **arrays)
         _trim(folder)
     except OSError as error:
-        if str(folder) not in _reported:
-            _reported.add(str(folder))
-            warnings.warn(f"truth cache {folder} cannot be written ({error.strerror or error});"
-                          f" simulating without it (set {TRUTH_CACHE_ENV}=off to silence)",
-                          RuntimeWarning, stacklevel=3)
+        _reported.add(str(folder))
+        warnings.warn(f"truth cache {folder} cannot be written ({error.strerror or error});"
+                      f" simulating without it (set {TRUTH_CACHE_ENV}=off to silence)",
+                      RuntimeWarning, stacklevel=3)
 
 
 def _trim(folder: Path, limit: int = TRUTH_CACHE_BYTES) -> None:
     """Remove the least recently used entries until the cache holds at most limit bytes."""
+    from aligngym.scenarios.atomic import is_temporary
     entries = []
     for path in folder.glob("*.npz"):
+        if is_temporary(path):                 # another process's entry being written
+            continue
         try:
             stat = path.stat()
         except FileNotFoundError:              # removed by another process meanwhile

@@ -15,7 +15,8 @@ def pytest_configure(config):
     workers, the campaigns' worker processes and the command-line subprocesses (they
     inherit the environment), and removed at the end: the suite neither reads nor fills
     the user's cache. ALIGNGYM_TRUTH_CACHE=off runs the suite without one."""
-    if hasattr(config, "workerinput") or os.environ.get("ALIGNGYM_TRUTH_CACHE") == "off":
+    chosen = os.environ.get("ALIGNGYM_TRUTH_CACHE", "")
+    if hasattr(config, "workerinput") or chosen.lower() == "off":
         return                    # an xdist worker (it has the controller's), or no cache
     folder = tempfile.mkdtemp(prefix="aligngym-truth-")
     config._aligngym_truth_cache = (os.environ.get("ALIGNGYM_TRUTH_CACHE"), folder)

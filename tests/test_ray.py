@@ -18,11 +18,15 @@ SMALL = dict(episodes=3, seed=4, filters=["ekf"], progress=False)
 
 @pytest.fixture(scope="module")
 def local_ray():
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    # Classes of this test module reach Ray's workers by value.
-    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    yield
-    ray.shutdown()
+    """A local Ray instance; without the truth cache, so that Ray's workers and the local
+    processes each simulate their episodes (the comparison is across processes)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("ALIGNGYM_TRUTH_CACHE", "off")
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        # Classes of this test module reach Ray's workers by value.
+        ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+        yield
+        ray.shutdown()
 
 
 def short_paper002():

@@ -4,7 +4,6 @@ written is reported once; processes needing one entry at once simulate it once; 
 least recently used entries go first."""
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
@@ -84,23 +83,53 @@ def test_off_and_another_code_version_use_no_entry(cache, monkeypatch):
     assert not cache.exists()
 
 
-def _slow_entry(folder: str, log: str) -> float:
+def _entry_at_once(folder: str, log: str, start) -> None:
+    """Wait for the other process, then ask for the slow entry; log who computed it."""
     os.environ[truth_cache.TRUTH_CACHE_ENV] = folder
+    start.wait()
 
     def compute():
         with open(log, "a") as f:
             f.write("computed\n")
         time.sleep(0.5)
         return {"a": np.arange(3.0)}
-    return float(truth_cache.cached_arrays("slow", (1,), compute)["a"].sum())
+    total = float(truth_cache.cached_arrays("slow", (1,), compute)["a"].sum())
+    with open(log, "a") as f:
+        f.write(f"{os.getpid()} {total}\n")
 
 
 def test_processes_needing_one_entry_at_once_simulate_it_once(tmp_path):
-    log = tmp_path / "log"
-    with ProcessPoolExecutor(2) as pool:
-        sums = list(pool.map(_slow_entry, [str(tmp_path / "truth")] * 2, [str(log)] * 2))
-    assert sums == [3.0, 3.0]
-    assert log.read_text().count("computed") == 1
+    import multiprocessing
+    fork = multiprocessing.get_context("fork")
+    log, start = tmp_path / "log", fork.Barrier(2)
+    workers = [fork.Process(target=_entry_at_once, args=(str(tmp_path / "truth"), str(log),
+                                                         start)) for _ in range(2)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join(30)
+    lines = log.read_text().splitlines()
+    assert lines.count("computed") == 1
+    done = [line.split() for line in lines if line != "computed"]
+    assert sorted(pid for pid, _ in done) == sorted(str(w.pid) for w in workers)
+    assert all(total == "3.0" for _, total in done)
+
+
+def test_an_entry_that_cannot_be_touched_is_still_loaded_and_kept(cache, monkeypatch):
+    """Another user's entry, or a read-only cache: it loads, and nothing removes it."""
+    first = truth_cache.cached_arrays("k", (2,), lambda: {"a": np.arange(4.0)})
+    (entry,) = cache.glob("*.npz")
+    os.utime(entry, (1000.0, 1000.0))
+
+    def refused(*args, **kwargs):
+        raise PermissionError(1, "Operation not permitted")
+    with monkeypatch.context() as patch:
+        patch.setattr(os, "utime", refused)
+        again = truth_cache.cached_arrays("k", (2,), no_simulation)
+    np.testing.assert_array_equal(again["a"], first["a"])
+    assert entry.is_file()
+    truth_cache.cached_arrays("k", (2,), no_simulation)
+    assert entry.stat().st_mtime > 1000.0      # a load marks it recently used
 
 
 def test_the_least_recently_used_entries_go_first(tmp_path):
@@ -108,5 +137,9 @@ def test_the_least_recently_used_entries_go_first(tmp_path):
         path = tmp_path / f"{name}.npz"
         path.write_bytes(b"x" * 100)
         os.utime(path, (1000.0 + k, 1000.0 + k))
+    writing = tmp_path / ".new.123.abcd1234.tmp.npz"   # another process's, being written
+    writing.write_bytes(b"x" * 1000)
+    os.utime(writing, (900.0, 900.0))
     truth_cache._trim(tmp_path, limit=250)
-    assert sorted(p.stem for p in tmp_path.glob("*.npz")) == ["mid", "new"]
+    assert sorted(p.stem for p in tmp_path.glob("[!.]*.npz")) == ["mid", "new"]
+    assert writing.is_file()
