@@ -16,6 +16,8 @@ from aligngym.scenarios.config import load_scenario
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
     monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, str(tmp_path / "truth"))
+    monkeypatch.setattr(truth_cache, "FREE_BYTES_KEPT", 0)   # written on a fuller disk too
+    monkeypatch.setattr(truth_cache, "_reported", set())
     sim._ship_truth.cache_clear()               # the per-process level: only the disk's
     yield tmp_path / "truth"
     sim._ship_truth.cache_clear()
@@ -98,8 +100,9 @@ def _entry_at_once(folder: str, log: str, start) -> None:
         f.write(f"{os.getpid()} {total}\n")
 
 
-def test_processes_needing_one_entry_at_once_simulate_it_once(tmp_path):
+def test_processes_needing_one_entry_at_once_simulate_it_once(tmp_path, monkeypatch):
     import multiprocessing
+    monkeypatch.setattr(truth_cache, "FREE_BYTES_KEPT", 0)    # the forked workers' too
     fork = multiprocessing.get_context("fork")
     log, start = tmp_path / "log", fork.Barrier(2)
     workers = [fork.Process(target=_entry_at_once, args=(str(tmp_path / "truth"), str(log),
@@ -130,6 +133,13 @@ def test_an_entry_that_cannot_be_touched_is_still_loaded_and_kept(cache, monkeyp
     assert entry.is_file()
     truth_cache.cached_arrays("k", (2,), no_simulation)
     assert entry.stat().st_mtime > 1000.0      # a load marks it recently used
+
+
+def test_a_disk_nearly_full_is_not_filled(cache, monkeypatch):
+    monkeypatch.setattr(truth_cache, "FREE_BYTES_KEPT", 10 ** 18)
+    with pytest.warns(RuntimeWarning, match="would stay free"):
+        truth_cache.cached_arrays("k", (3,), lambda: {"a": np.arange(4.0)})
+    assert not list(cache.glob("*.npz"))
 
 
 def test_the_least_recently_used_entries_go_first(tmp_path):
