@@ -13,7 +13,9 @@ from the recorded steps.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 
@@ -75,12 +77,11 @@ class SceneRenderer:
         model = self.model
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        # One GL context for both pictures (a context costs 0.2-0.3 s to make): MuJoCo's
+        # Renderer draws into the lower-left corner of the model's offscreen buffer, so
+        # the close-up is the same renderer with a smaller rectangle (``_sized``).
         self._renderer = mujoco.Renderer(model, height, width)
-        try:
-            self._inset = mujoco.Renderer(model, height // 3, width // 3)
-        except Exception:
-            self._renderer.close()
-            raise
+        self._inset_size = (height // 3, width // 3)
         self._camera, self._close = mujoco.MjvCamera(), mujoco.MjvCamera()
         self._inset_option = mujoco.MjvOption()
         if config.world == "car":       # the IMU sits inside the body: the close-up shows
@@ -119,8 +120,8 @@ class SceneRenderer:
             self._waves(t)
 
     def _waves(self, t: float) -> None:
-        """Fill the sea's heightfield with the waves at time t and upload it to both
-        renderers' GL contexts."""
+        """Fill the sea's heightfield with the waves at time t and upload it to the
+        renderer's GL context."""
         import mujoco
 
         model, hid = self.model, self._sea
@@ -128,11 +129,10 @@ class SceneRenderer:
         eta = self.world.sea_surface(t, *self._sea_xy)
         start = model.hfield_adr[hid]
         model.hfield_data[start:start + eta.size] = np.clip(eta / top + 0.5, 0.0, 1.0).ravel()
-        for renderer in (self._renderer, self._inset):
-            context = getattr(renderer, "_gl_context", None)   # MuJoCo's own, private
-            if context is None or getattr(renderer, "_mjr_context", None) is None:
-                continue                                        # no GL: nothing to upload
-            context.make_current()
+        renderer = self._renderer
+        context = getattr(renderer, "_gl_context", None)   # MuJoCo's own, private
+        if context is not None and getattr(renderer, "_mjr_context", None) is not None:
+            context.make_current()                         # (no GL: nothing to upload)
             mujoco.mjr_uploadHField(model, renderer._mjr_context, hid)
 
     def _heading_deg(self) -> float:
@@ -159,8 +159,10 @@ class SceneRenderer:
         self._aim()
         self._renderer.update_scene(self.data, self._camera)
         image = self._renderer.render().copy()
-        self._inset.update_scene(self.data, self._close, scene_option=self._inset_option)
-        close = self._inset.render()
+        with _sized(self._renderer, self._inset_size):
+            self._renderer.update_scene(self.data, self._close,
+                                        scene_option=self._inset_option)
+            close = self._renderer.render()
         h, w = close.shape[:2]
         image[-h - 4:, -w - 4:] = 255                       # a white border
         image[-h - 2:-2, -w - 2:-2] = close
@@ -173,13 +175,14 @@ class SceneRenderer:
 
         self.pose(t)
         self._aim()
-        renderer, camera = ((self._inset, self._close) if close_up
-                            else (self._renderer, self._camera))
+        renderer, camera = self._renderer, self._close if close_up else self._camera
+        size = self._inset_size if close_up else (renderer.height, renderer.width)
         renderer.enable_segmentation_rendering()
         try:
-            renderer.update_scene(self.data, camera,
-                                  scene_option=self._inset_option if close_up else None)
-            picture = renderer.render()
+            with _sized(renderer, size):
+                renderer.update_scene(self.data, camera,
+                                      scene_option=self._inset_option if close_up else None)
+                picture = renderer.render()
             ids = np.where(picture[..., 1] == mujoco.mjtObj.mjOBJ_GEOM,
                            picture[..., 0].astype(int), -1)
         finally:
@@ -195,9 +198,23 @@ class SceneRenderer:
                 f"  heading {(-yaw) % 360.0:6.2f} deg")
 
     def close(self) -> None:
-        """Free the renderers' GL contexts."""
-        for renderer in (self._renderer, self._inset):
-            renderer.close()
+        """Free the renderer's GL context."""
+        self._renderer.close()
+
+
+@contextmanager
+def _sized(renderer, size: tuple[int, int]) -> Iterator[None]:
+    """The MuJoCo renderer drawing (height, width) pixels, no larger than its own size,
+    for the duration (its private size and rectangle, restored after)."""
+    import mujoco
+
+    saved = renderer._height, renderer._width, renderer._rect
+    renderer._height, renderer._width = size
+    renderer._rect = mujoco.MjrRect(0, 0, size[1], size[0])
+    try:
+        yield
+    finally:
+        renderer._height, renderer._width, renderer._rect = saved
 
 
 def overlay(image: np.ndarray, lines: list[str]) -> np.ndarray:
