@@ -1,5 +1,6 @@
 import os
 import shutil
+import sys
 import tempfile
 
 import numpy as np
@@ -20,6 +21,12 @@ paper 003's campaign in one process: 16 % less CPU, the same numbers)."""
 def pytest_configure(config):
     for name in BLAS_THREADS:
         os.environ.setdefault(name, "1")
+    # Bytecode caches (__pycache__, git-ignored) written and read by every process of the
+    # run, where PYTHONDONTWRITEBYTECODE would have each xdist worker and command-line
+    # subprocess compile the package and rewrite the test modules again (collection
+    # 5.4 s -> 2.6 s per worker).
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+    sys.dont_write_bytecode = False
     _share_truth_cache(config)
 
 
