@@ -1,7 +1,8 @@
 """Benchmark: wall time of the whole test suite, in one process (-n 0, as before
 pytest-xdist) and on every core (the default run: -n auto, a test file per worker).
-On two cores the default run takes under 3 minutes and the one-process run about the
-suite's CPU time, 6 minutes. Run: python benchmarks/bench_suite.py"""
+On two cores the default run takes about 3 minutes (the suite's CPU: about 5.7 minutes,
+which the one-process run takes in wall time, or more). Run: python
+benchmarks/bench_suite.py"""
 from __future__ import annotations
 
 import subprocess

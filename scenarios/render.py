@@ -205,9 +205,17 @@ class SceneRenderer:
 @contextmanager
 def _sized(renderer, size: tuple[int, int]) -> Iterator[None]:
     """The MuJoCo renderer drawing (height, width) pixels, no larger than its own size,
-    for the duration (its private size and rectangle, restored after)."""
+    for the duration. It sets mujoco.Renderer's private _height, _width and _rect (the
+    same in MuJoCo 3.2 to 4.0), restored after; a renderer without them is an error, not
+    a picture of the wrong size."""
     import mujoco
 
+    if not all(hasattr(renderer, name) for name in ("_height", "_width", "_rect")):
+        raise RuntimeError("this MuJoCo's Renderer has no _height, _width and _rect: the "
+                           "close-up cannot share its GL context (scenarios.render._sized)")
+    if size[0] > renderer.height or size[1] > renderer.width:
+        raise ValueError(f"picture {size[0]}x{size[1]} is larger than the renderer's "
+                         f"{renderer.height}x{renderer.width}")
     saved = renderer._height, renderer._width, renderer._rect
     renderer._height, renderer._width = size
     renderer._rect = mujoco.MjrRect(0, 0, size[1], size[0])

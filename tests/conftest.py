@@ -10,21 +10,28 @@ from aligngym.models.earth import TangentPlane
 from aligngym.models.units import deg
 from aligngym.scenarios.config import load_scenario
 
-
-BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-"""One BLAS thread in every process the suite starts (its xdist workers, campaign
-workers and command-line subprocesses inherit the environment): the xdist workers
-already take every core, and BLAS threads inside them only oversubscribe (measured on
-paper 003's campaign in one process: 16 % less CPU, the same numbers)."""
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+                "VECLIB_MAXIMUM_THREADS")
+"""One BLAS thread in the processes the run starts (a value the user set is kept): its
+xdist workers, which already take every core (BLAS threads inside them only
+oversubscribe: paper 003's campaign in one process measured 16 % less CPU, the same
+numbers), the campaign workers forked from them and the command-line subprocesses. The
+pytest process itself loaded NumPy with the aligngym plugin, so a -n 0 run keeps its
+threads."""
+_ENVIRONMENT = {name: os.environ.get(name)
+                for name in (*BLAS_THREADS, "PYTHONDONTWRITEBYTECODE")}
+"""The variables this conftest sets, as they were: restored when the run ends."""
 
 
 def pytest_configure(config):
     for name in BLAS_THREADS:
         os.environ.setdefault(name, "1")
     # Bytecode caches (__pycache__, git-ignored) written and read by every process of the
-    # run, where PYTHONDONTWRITEBYTECODE would have each xdist worker and command-line
-    # subprocess compile the package and rewrite the test modules again (collection
-    # 5.4 s -> 2.6 s per worker).
+    # run, even where PYTHONDONTWRITEBYTECODE or -B says not to: without them each xdist
+    # worker and each command-line subprocess compiles the package and rewrites the test
+    # modules again (on a machine that sets the variable, collection 5.4 s -> 2.6 s per
+    # worker). Restored when the run ends.
+    config._aligngym_dont_write_bytecode = sys.dont_write_bytecode
     os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
     sys.dont_write_bytecode = False
     _share_truth_cache(config)
@@ -44,6 +51,13 @@ def _share_truth_cache(config):
 
 
 def pytest_unconfigure(config):
+    for name, value in _ENVIRONMENT.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
+    sys.dont_write_bytecode = getattr(config, "_aligngym_dont_write_bytecode",
+                                      sys.dont_write_bytecode)
     saved = getattr(config, "_aligngym_truth_cache", None)
     if saved is None:
         return

@@ -23,8 +23,8 @@ CONSTANT_BIASES = ImuSpec(
 
 
 def calm(config, rotate=True, imu=None):
-    """The ship without sway (the random phases of a motion that is still draw nothing:
-    every seed shares one truth)."""
+    """The ship without sway. Its linear phases are not drawn (random_linear_phase off):
+    with zero amplitudes they change nothing, so every seed shares one truth."""
     motion = replace(config.motion, yaw_amplitude=0.0, pitch_amplitude=0.0,
                      roll_amplitude=0.0, linear_amplitude=(0.0, 0.0, 0.0))
     if not rotate:

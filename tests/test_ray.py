@@ -34,8 +34,9 @@ def short_paper002():
 
 
 @pytest.fixture(scope="module")
-def local():
-    """The campaign on local processes: the reference of both Ray tests."""
+def local(local_ray):
+    """The campaign on local processes (truth cache off, as local_ray sets it): the
+    reference of both Ray tests."""
     return run_campaign(short_paper002(), workers=2, **SMALL)
 
 

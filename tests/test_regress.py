@@ -10,13 +10,15 @@ from aligngym.scenarios.regress import Difference, campaigns, compare, regress
 
 
 FROM_THE_WHEEL = "paper002"
-"""Run against its baseline by tests/test_wheel.py, from the installed wheel (the same
-code and baseline): not run a second time here."""
+"""Run against its baseline by tests/test_wheel.py::test_paper002_regress_from_the_wheel
+(the installed wheel, the same code and baseline, one worker): not run twice."""
 
 
 def test_regress_passes_on_the_landed_code(capsys):
     """Every declared campaign against its baseline (paper 002's from the wheel)."""
+    assert FROM_THE_WHEEL in campaigns()
     papers = [paper for paper in campaigns() if paper != FROM_THE_WHEEL]
+    assert papers
     assert main(["regress", "--papers", ",".join(papers)]) == 0
     out = capsys.readouterr().out
     for paper in papers:

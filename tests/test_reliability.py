@@ -162,6 +162,8 @@ def test_a_damaged_manifest_is_one_line_saying_what_to_do(text, why, clean_campa
     assert why in line and "use --force" in line and line.startswith("aligngym: error:")
 
 
+@pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning",
+                            "error::pytest.PytestUnhandledThreadExceptionWarning")
 @settings(max_examples=12, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cuts=st.lists(st.tuples(st.integers(0, 4), st.integers(0, 30000), st.booleans()),
@@ -180,7 +182,9 @@ def test_fuzzed_damage_before_resume_completes_or_is_one_line(cuts, clean_campai
         at = min(at, len(data))
         files[index].write_bytes(data[:at] + (bytes(b ^ 0x5A for b in data[at:at + 64])
                                               + data[at + 64:] if flip else b""))
-    err = io.StringIO()            # in this process: an uncaught exception fails the test
+    # In this process: an uncaught exception, or one Python could only print (a
+    # finaliser's: an unraisable-exception warning, made an error), fails the test.
+    err = io.StringIO()
     with redirect_stderr(err), redirect_stdout(io.StringIO()):
         code = main(bench_argv(out, "--resume", "--json", str(out / "s.json"), episodes=4))
     assert "Traceback" not in err.getvalue()
