@@ -1,5 +1,6 @@
 """An interrupted campaign: SIGKILL while episodes are being written, then --resume,
 gives the uninterrupted run's results; a half-written file is never read as finished."""
+import fcntl
 import json
 import os
 import signal
@@ -9,6 +10,7 @@ import time
 
 import numpy as np
 
+from aligngym.scenarios.campaign.manifest import LOCK_NAME
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.regress import flatten
 
@@ -38,6 +40,17 @@ def test_sigkill_then_resume_equals_an_uninterrupted_run(tmp_path):
     assert proc.poll() is None, "the campaign ended before it could be killed"
     os.killpg(proc.pid, signal.SIGKILL)                      # the workers too
     proc.wait()
+    # The kernel ends the workers, which hold the campaign lock too, a moment later.
+    with open(out / LOCK_NAME) as lock:
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                assert time.monotonic() < deadline, "the killed run's workers hold its lock"
+                time.sleep(0.01)
+        fcntl.flock(lock, fcntl.LOCK_UN)
     # A write cut short leaves a *.tmp.npz (renamed only when complete): every
     # seed_N.npz is a whole episode.
     finished = finished_files()
