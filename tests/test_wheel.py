@@ -22,12 +22,11 @@ def installed(tmp_path_factory):
     this environment's setuptools (the test extra's), not in an isolated build
     environment as pip would for a user: the same files, 2 s sooner."""
     tmp = tmp_path_factory.mktemp("wheel")
-    # Built with this interpreter's setuptools (the test extra's): an isolated build
-    # would install one into a new environment first.
     build = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
                             "--no-build-isolation", "-w", str(tmp), str(ROOT)],
                            capture_output=True, text=True)
-    assert build.returncode == 0, build.stderr + "\n(setuptools >= 70.1: pip install -e '.[test]')"
+    assert build.returncode == 0, (build.stderr
+                                   + "\n(setuptools >= 70.1: pip install -e '.[test]')")
     wheel = next(tmp.glob("aligngym-*.whl"))
     env = tmp / "venv"
     venv.EnvBuilder(system_site_packages=True, with_pip=False).create(env)
@@ -47,6 +46,11 @@ def test_the_wheel_holds_aligngym_alone_with_its_data(installed):
             assert f"aligngym/{init.relative_to(ROOT).as_posix()}" in names
     assert "aligngym/scenarios/data/static-large-azimuth.toml" in names
     assert "aligngym/scenarios/data/baselines/regress_paper002.json" in names
+
+
+def venv_cli(python, *args: str) -> list[str]:
+    """The command line of the venv's aligngym."""
+    return [str(python), "-m", "aligngym.scenarios.cli", *args]
 
 
 @pytest.fixture
@@ -71,9 +75,8 @@ def test_a_users_own_packages_do_not_shadow_aligngym(installed, users_directory)
                          text=True)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == "aligngym.scenarios.campaign.engine"
-    bench = subprocess.run([str(python), "-m", "aligngym.scenarios.cli", "bench", "paper002",
-                            "--episodes", "2", "--filters", "ekf", "--workers", "1",
-                            "--json", "s.json"],
+    bench = subprocess.run(venv_cli(python, "bench", "paper002", "--episodes", "2",
+                                    "--filters", "ekf", "--workers", "1", "--json", "s.json"),
                            cwd=users_directory, capture_output=True, text=True)
     assert bench.returncode == 0, bench.stderr
     assert (users_directory / "s.json").is_file()
@@ -84,8 +87,8 @@ def test_paper002_regress_from_the_wheel(installed, users_directory):
     against the shipped baseline: aligngym regress's only run of paper 002 in the suite
     (tests/test_regress.py leaves it here, FROM_THE_WHEEL)."""
     _, python = installed
-    regress = subprocess.run([str(python), "-m", "aligngym.scenarios.cli", "regress",
-                              "--papers", "paper002", "--workers", "1"],
+    regress = subprocess.run(venv_cli(python, "regress", "--papers", "paper002",
+                                      "--workers", "1"),
                              cwd=users_directory, capture_output=True, text=True)
     assert regress.returncode == 0, regress.stdout + regress.stderr
     assert "paper002: 54 metrics, 0 beyond tolerance" in regress.stdout
