@@ -1,5 +1,7 @@
-"""pytest plugin (entry point ``pytest11``): the fixture ``aligngym_episode``, a factory
-of simulated episodes for users' tests. Imports the testbed only when a test uses it."""
+"""pytest plugin (entry point ``pytest11``): the fixtures ``aligngym_episode``, a factory
+of simulated episodes for users' tests, and ``aligngym_alignment``, the alignment-bound
+check of ``aligngym.testing`` from any start. Imports the testbed only when a test uses
+them."""
 from __future__ import annotations
 
 import pytest
@@ -20,3 +22,14 @@ def aligngym_episode():
             config = config.with_options(duration=duration)
         return simulate(config, seed=seed, ideal=ideal)
     return make
+
+
+@pytest.fixture
+def aligngym_alignment():
+    """check(filter, scenario, episodes=5, seed=0, heading_rms_arcmin=None,
+    level_rms_arcmin=None, start=None, **settings) -> the measured errors:
+    ``aligngym.testing.assert_alignment`` (start: one of the experiment's start names,
+    None for its first, "all" for each against the same bounds; arcmin), failing the test
+    with a per-episode table when a bound is exceeded or an episode diverged."""
+    from aligngym.testing import assert_alignment
+    return assert_alignment

@@ -1,6 +1,7 @@
 """The pytest plugin in a fresh test directory (pytester): the ``aligngym_episode``
-fixture gives an episode whose truth and sensors agree, and ``assert_alignment``
-passes within a bound and fails beyond it with a readable per-episode table."""
+fixture gives an episode whose truth and sensors agree, ``assert_alignment`` passes
+within a bound and fails beyond it with a readable per-episode table, and the
+``aligngym_alignment`` fixture checks every start of a multi-start experiment."""
 pytest_plugins = ["pytester"]
 
 
@@ -32,6 +33,14 @@ def test_fixture_and_assertion_in_a_fresh_directory(pytester):
             text = str(error.value)
             assert "heading RMS" in text and "> 0.01'" in text
             assert text.count("\n") == 4          # headline, header, 2 episodes, RMS
+
+        def test_the_fixture_from_every_start(aligngym_alignment):
+            measured = aligngym_alignment("kf", "ship-sway-rotary", episodes=2,
+                                          start="all", heading_rms_arcmin=20.0,
+                                          fine_duration=120.0)
+            assert list(measured) == ["mean", "max"]
+            with pytest.raises(ValueError, match="valid: mean, max, all"):
+                aligngym_alignment("kf", "ship-sway-rotary", start="coarse")
         ''')
     result = pytester.runpytest("-p", "no:cacheprovider")
-    result.assert_outcomes(passed=3)
+    result.assert_outcomes(passed=4)

@@ -4,6 +4,7 @@ regression baselines as package data), and works from a directory whose own ``mo
 ``sensors/``, ``estimators/`` and ``scenarios/`` packages would shadow generic names."""
 import subprocess
 import sys
+import sysconfig
 import venv
 import zipfile
 from pathlib import Path
@@ -17,10 +18,14 @@ SUBPACKAGES = ("models", "sensors", "estimators", "scenarios")
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
     """(wheel path, the venv's python) : the project's wheel installed without its
-    dependencies into a fresh venv that sees this interpreter's site-packages (for numpy,
-    MuJoCo, ...); the venv's own aligngym comes first on its path. The wheel is built with
-    this environment's setuptools (the test extra's), not in an isolated build
-    environment as pip would for a user: the same files, 2 s sooner."""
+    dependencies into a fresh venv whose path ends with this interpreter's site-packages
+    (for numpy, MuJoCo, ...): a ``.pth`` file naming them, so that the test works from a
+    venv (whose packages ``system_site_packages`` would not see: it sees the base
+    interpreter's) as from a system Python; the venv's own aligngym comes first on its
+    path, and the running environment's editable aligngym is not loaded (a path in a
+    ``.pth`` file is not a site directory: its own ``.pth`` files are not run). The
+    wheel is built with this environment's setuptools (the test extra's), not in an
+    isolated build environment as pip would for a user: the same files, 2 s sooner."""
     tmp = tmp_path_factory.mktemp("wheel")
     build = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
                             "--no-build-isolation", "-w", str(tmp), str(ROOT)],
@@ -29,8 +34,14 @@ def installed(tmp_path_factory):
                                    + "\n(setuptools >= 70.1: pip install -e '.[test]')")
     wheel = next(tmp.glob("aligngym-*.whl"))
     env = tmp / "venv"
-    venv.EnvBuilder(system_site_packages=True, with_pip=False).create(env)
+    venv.EnvBuilder(system_site_packages=False, with_pip=False).create(env)
     python = env / "bin" / "python"
+    purelib = subprocess.run([str(python), "-c", "import sysconfig; "
+                              "print(sysconfig.get_paths()['purelib'])"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+    paths = sysconfig.get_paths()
+    Path(purelib, "running-interpreter.pth").write_text(
+        "".join(f"{p}\n" for p in dict.fromkeys((paths["purelib"], paths["platlib"]))))
     subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "-q",
                     "--no-deps", str(wheel)], check=True, capture_output=True)
     return wheel, python
@@ -68,8 +79,8 @@ def test_a_users_own_packages_do_not_shadow_aligngym(installed, users_directory)
     _, python = installed
     code = ("import sys, aligngym, aligngym.models.attitude, aligngym.scenarios.campaign; "
             "import models; assert models.OWNER == 'the user'; "
-            "assert 'site-packages' in aligngym.__file__, aligngym.__file__; "
-            "assert 'site-packages' in aligngym.models.attitude.__file__; "
+            "assert aligngym.__file__.startswith(sys.prefix), aligngym.__file__; "
+            "assert aligngym.models.attitude.__file__.startswith(sys.prefix); "
             "print(aligngym.run_campaign.__module__)")
     run = subprocess.run([str(python), "-c", code], cwd=users_directory, capture_output=True,
                          text=True)

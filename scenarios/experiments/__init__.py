@@ -64,12 +64,28 @@ def regress_campaigns() -> dict[str, dict]:
     return out
 
 
+def setup_for(scenario_name: str) -> tuple[str, str] | None:
+    """(experiment, setup) of the named setup that runs on a scenario whose file names no
+    experiment (e.g. ship-sway-rotary-paper: paper003's --setup paper); None if none."""
+    for name in experiment_names():
+        for setup, overrides in experiment_class(name).setups.items():
+            if str(overrides.get("scenario", "")) == scenario_name:
+                return name, setup
+    return None
+
+
 def experiment_for(scenario: str, config=None, **settings) -> "Experiment":
     """The experiment that runs on a scenario (a shipped name or a .toml path): the one
-    its file names in its ``experiment`` key (config: the file already loaded)."""
+    its file names in its ``experiment`` key, or for a file without one the named setup
+    made for it (``setup_for``: ``figure8-gps-paper`` is paper001's ``--setup paper``);
+    config: the file already loaded."""
     from aligngym.scenarios.config import load_scenario
     config = load_scenario(scenario) if config is None else config
     if not config.experiment:
+        named = setup_for(config.name)
+        if named is not None:
+            return experiment(named[0], setup=named[1], **{**settings, "scenario": scenario}
+                              ).holding(config)
         raise ConfigError(f"scenario {config.name!r} names no experiment (its file has no "
                           "experiment key; valid: " + ", ".join(experiment_names()) + "); shipped "
                           "scenarios with one: " + ", ".join(sorted(SCENARIO_PAPER)))
