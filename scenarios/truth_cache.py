@@ -135,7 +135,7 @@ def _load(path: Path) -> dict[str, np.ndarray] | None:
     """The entry's arrays, or None if it is absent, unreadable or damaged (a damaged one
     is removed where the cache can be written)."""
     try:
-        with np.load(path) as f:
+        with open(path, "rb") as handle, np.load(handle) as f:   # closed if damaged
             arrays = {name: f[name] for name in f.files}
     except FileNotFoundError:
         return None

@@ -67,7 +67,9 @@ class PreparedEpisode(ABC):
 
     @classmethod
     def load(cls, path: Path) -> "PreparedEpisode":
-        with np.load(path) as f:
+        # The file opened here: np.load leaves a file it opened itself open when the
+        # archive is damaged (a ResourceWarning, a descriptor held until collected).
+        with open(path, "rb") as handle, np.load(handle) as f:
             episode = cls.from_arrays(f)
             if "fault_kind" in f.files:
                 episode.fault_kind, episode.fault_time = f["fault_kind"], f["fault_time"]

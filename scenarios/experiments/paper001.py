@@ -423,11 +423,22 @@ def _turning(episodes, K: int, rate: float) -> np.ndarray:
     return d > rate
 
 
+def _finite_mean(values: np.ndarray, axis=None) -> np.ndarray:
+    """Mean of the finite values along axis; NaN where there are none (an episode that
+    never moves in a short run: no motion metrics), without numpy's empty-slice
+    warning."""
+    finite = np.isfinite(values)
+    count = finite.sum(axis=axis)
+    total = np.where(finite, values, 0.0).sum(axis=axis)
+    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
 def _masked_rms(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """RMS over the masked epochs per episode, then RMS over episodes; values (B, K, ...)."""
+    """RMS over the masked epochs per episode, then RMS over episodes; values (B, K, ...);
+    NaN where no epoch is masked."""
     m = mask.reshape(mask.shape + (1,) * (values.ndim - mask.ndim))
     sq = np.where(m & np.isfinite(values), values ** 2, np.nan)
-    return np.sqrt(np.nanmean(np.nanmean(sq, axis=1), axis=0))
+    return np.sqrt(_finite_mean(_finite_mean(sq, axis=1), axis=0))
 
 
 def scheme_metrics(result: CampaignResult, run) -> dict:
@@ -437,7 +448,8 @@ def scheme_metrics(result: CampaignResult, run) -> dict:
     moving = _motion(episodes, K)
     diff = run.result.series["gps_difference"]
     sel = np.where(moving[..., None] & np.isfinite(diff), diff, np.nan)
-    std = np.sqrt(np.nanmean(np.nanvar(sel, axis=1), axis=0))    # per-episode std, RMS'd
+    spread = (sel - _finite_mean(sel, axis=1)[:, None]) ** 2
+    std = np.sqrt(_finite_mean(_finite_mean(spread, axis=1), axis=0))  # per episode, RMS'd
     pos, vel = navigation_errors(run, episodes)
     turning = _turning(episodes, K, exp.turn_rate_deg_s * deg) & moving
     gps_heading = np.stack([np.arctan2(e.gps_v_n[:K, 0], e.gps_v_n[:K, 1]) for e in episodes])
@@ -452,7 +464,7 @@ def scheme_metrics(result: CampaignResult, run) -> dict:
         "heading_gps_difference_turns_deg": float(_masked_rms(heading_diff, turning) / deg),
         "heading_gps_difference_straight_deg": float(
             _masked_rms(heading_diff, moving & ~turning) / deg),
-        "nees_mean": float(np.nanmean(np.where(moving, run.nees, np.nan)[:, 1:])),
+        "nees_mean": float(_finite_mean(np.where(moving, run.nees, np.nan)[:, 1:])),
         "diverged_fraction": float(run.diverged.mean())}
 
 

@@ -1,0 +1,128 @@
+"""Each experiment's NEES and its truth-to-state map, probed on hand-built states of a
+short real run at every epoch: the run's covariance replaced by a diagonal one with a
+different variance v_i for every state i, a state component moved by +delta and
+-delta. For a state that enters the error linearly, NEES(+d) + NEES(-d) - 2 NEES(0) =
+2 d^2 / v_i exactly, whatever the run's own error: a slice that reads another state, or
+another state's variance, misses it by the ratio of two variances. The accumulated
+estimate of a closed-loop model (its series, after feedback) and the state (before
+feedback) are one estimate: the same delta in either gives the same NEES. The attitude
+is probed through the model's attitude (C_s_n, Euler models) or the error the engine
+hands in (error_n)."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from aligngym.scenarios.campaign import run_campaign
+from aligngym.scenarios.experiments import experiment
+
+SHORT = {
+    # experiment: (filter, settings, [(state index, series key or None)], attitude)
+    "paper000": ("ekf", {"fine_duration": 20.0, "starts": ("coarse",)},
+                 [(i, "gyro_bias") for i in range(9, 12)]
+                 + [(i, "accel_bias") for i in range(12, 15)], ("C_s_n", (0, 1, 2))),
+    "paper001": ("lckf", {"fine_duration": 20.0},
+                 [(i, None) for i in range(0, 6)] + [(i, "gyro_bias") for i in range(9, 12)]
+                 + [(i, "accel_bias") for i in range(12, 15)], ("error_n", (6, 7, 8))),
+    "paper002": ("ekf", {"fine_duration": 20.0}, [(i, None) for i in range(5, 10)],
+                 ("C_s_n", (0, 1, 2))),
+    "paper003": ("kf", {"fine_duration": 20.0}, [(i, None) for i in range(6, 12)],
+                 ("error_n", (3, 4, 5))),
+    "paper004": ("ekf", {"fine_duration": 20.0},
+                 [(i, "gyro_bias") for i in range(9, 12)]
+                 + [(i, "accel_bias") for i in range(12, 15)], ("error_n", (0, 1, 2))),
+}
+DELTA = 1.0
+"""The probe's step, in units of the state's sigma sqrt(v_i) (large against the
+rounding of NEES values of 10^4; a state that enters linearly is exact at any step)."""
+
+
+@pytest.fixture(scope="module", params=sorted(SHORT))
+def probe(request):
+    """(experiment, its run's FineResult with a diagonal P, episodes, error_n, case)."""
+    name = request.param
+    filter_name, settings, _, _ = SHORT[name]
+    exp = experiment(name, **settings)
+    result = run_campaign(exp, episodes=2, seed=0, filters=[filter_name], workers=1,
+                          progress=False)
+    run = result.runs[0]
+    fine = run.result
+    n = fine.x.shape[-1]
+    variances = 1e-6 * (1.0 + np.arange(n)) ** 2
+    P = np.broadcast_to(np.diag(variances), fine.P.shape).copy()
+    attitude = list(SHORT[name][3][1])
+    if SHORT[name][3][0] == "error_n":          # rotated into the filter's frame:
+        P[..., attitude, attitude] = variances[attitude[0]]   # isotropic there
+    return exp, replace(fine, P=P), result.episodes, run.error_n, SHORT[name]
+
+
+def second_difference(exp, episodes, base, moved):
+    """NEES(+d) + NEES(-d) - 2 NEES(0) (B, K+1); moved(sign) -> (FineResult, error_n)."""
+    return (exp.nees(*_args(moved(+1.0), episodes)) + exp.nees(*_args(moved(-1.0), episodes))
+            - 2.0 * exp.nees(*_args(base, episodes)))
+
+
+def _args(pair, episodes):
+    fine, error_n = pair
+    return fine, episodes, error_n
+
+
+def test_each_state_reads_its_own_component_and_variance(probe):
+    exp, fine, episodes, error_n, (_, _, states, _) = probe
+    variances = fine.P[0, 0].diagonal()
+    assert exp.nees_dof() == len(states) + 3
+    for index, _ in states:
+        step = DELTA * np.sqrt(variances[index])
+
+        def moved(sign):
+            x = fine.x.copy()
+            x[..., index] += sign * step
+            return replace(fine, x=x), error_n
+        np.testing.assert_allclose(second_difference(exp, episodes, (fine, error_n), moved),
+                                   2 * DELTA ** 2, rtol=1e-6, err_msg=f"state {index}")
+
+
+def test_the_accumulated_estimate_and_the_state_are_one_estimate(probe):
+    """Before feedback (the estimate in the state) and after (in the model's series)."""
+    exp, fine, episodes, error_n, (_, _, states, _) = probe
+    fed = [(i, key) for i, key in states if key is not None]
+    if not fed:
+        pytest.skip(f"paper{exp.paper}'s bias states are the whole estimate")
+    variances = fine.P[0, 0].diagonal()
+    for index, key in fed:
+        j = index - min(i for i, k in fed if k == key)
+        step = 3.0 * np.sqrt(variances[index])
+        x = fine.x.copy()
+        x[..., index] += step
+        series = {**fine.series, key: fine.series[key].copy()}
+        series[key][..., j] += step
+        before = exp.nees(replace(fine, x=x), episodes, error_n)
+        after = exp.nees(replace(fine, series=series), episodes, error_n)
+        np.testing.assert_allclose(before, after, rtol=1e-9)
+        assert not np.allclose(before, exp.nees(fine, episodes, error_n), rtol=1e-3)
+
+
+def test_the_attitude_reads_the_misalignment_and_its_variance(probe):
+    from aligngym.models.attitude import rotvec_to_dcm
+    exp, fine, episodes, error_n, (_, _, _, (how, indices)) = probe
+    variances = fine.P[0, 0].diagonal()
+    x = fine.x.copy()
+    if how == "C_s_n":
+        x[..., list(indices)] = 0.0        # the Euler error estimate fed back
+    flat = replace(fine, x=x)
+    for axis, index in enumerate(indices):
+        step = DELTA * np.sqrt(variances[index])
+        if how == "error_n":
+            def moved(sign):
+                e = error_n.copy()
+                e[..., axis] += sign * step
+                return flat, e
+            rtol = 1e-6
+        else:                              # a turn of the model's attitude about an n axis
+            def moved(sign):
+                turn = np.zeros(3)
+                turn[axis] = sign * step
+                return replace(flat, C_s_n=rotvec_to_dcm(turn) @ flat.C_s_n), error_n
+            rtol = 2e-2                    # the Euler error of a turn, near the truth
+        np.testing.assert_allclose(second_difference(exp, episodes, (flat, error_n), moved),
+                                   2 * DELTA ** 2, rtol=rtol, err_msg=f"attitude axis {axis}")
