@@ -43,7 +43,8 @@ class DivergenceRule:
     attitude error exceeds ``ratio`` times its own 3-sigma bound on an axis and also
     ``floor`` rad (a filter lost while confident); or its final attitude sigma exceeds
     ``sigma_bound`` rad on an axis (a filter lost and knowing it: past pi its Gaussian
-    belief says nothing about an angle, and the first test can no longer fire)."""
+    belief says nothing about an angle, and the first test can no longer fire; a NaN
+    sigma counts); or its final error is not finite (NaN is never inside a bound)."""
 
     ratio: float = 5.0
     floor: float = 2.9088820866572157e-4  # 1 arcmin
@@ -54,11 +55,13 @@ class DivergenceRule:
         lost = np.any((np.abs(final_error) > self.ratio * 3.0 * final_sigma)
                       & (np.abs(final_error) > self.floor), axis=-1)
         blown = np.any(~(final_sigma <= self.sigma_bound), axis=-1)   # NaN counts
-        out = [r if f else (f"final error > {self.ratio:g} x 3 sigma" if l else
+        broken = np.any(~np.isfinite(final_error), axis=-1)          # never "inside"
+        out = [r if f else ("final error not finite" if n else
+                            f"final error > {self.ratio:g} x 3 sigma" if l else
                             f"attitude sigma > {np.degrees(self.sigma_bound):g} deg"
                             if b else "")
-               for f, l, b, r in zip(flagged, lost, blown, reasons)]
-        return flagged | lost | blown, out
+               for f, n, l, b, r in zip(flagged, broken, lost, blown, reasons)]
+        return flagged | broken | lost | blown, out
 
 
 def static_alignment_floor(C_to_n: np.ndarray, gyro_bias: np.ndarray,

@@ -365,6 +365,23 @@ def test_a_blown_up_sigma_counts_as_diverged():
     assert reason == ["attitude sigma > 180 deg", ""]
 
 
+def test_a_nan_sigma_or_error_counts_as_diverged_and_a_flag_keeps_its_reason():
+    """A NaN sigma (a covariance lost to NaN) is diverged whatever the error; a NaN error
+    with a finite sigma is not passed as converged either; an episode the filter flagged
+    keeps the filter's reason."""
+    error = np.array([[0.1, 0.1, 1.0], [0.1, 0.1, np.nan], [0.1, 0.1, 1.0],
+                      [0.1, 0.1, 1.0]]) * arcmin
+    sigma = np.array([[1.0, 1.0, np.nan], [1.0, 1.0, 3.0], [1.0, 1.0, 3.0],
+                      [np.nan, 1.0, 3.0]]) * arcmin
+    flagged = np.array([False, False, False, True])
+    diverged, reason = DivergenceRule().apply(error, sigma, flagged,
+                                              ["", "", "", "covariance not positive definite"])
+    assert diverged.tolist() == [True, True, False, True]
+    assert reason[0] == "attitude sigma > 180 deg" and reason[2] == ""
+    assert reason[1] == "final error not finite"
+    assert reason[3] == "covariance not positive definite"
+
+
 # --- 8. runs refused before they start ----------------------------------------------------------
 def test_a_run_too_large_for_memory_is_refused_first(monkeypatch, capsys):
     monkeypatch.setattr(simulate_module, "available_memory", lambda: 2e9)
