@@ -1,0 +1,190 @@
+"""Mutation testing of the numerical core against the fast tests aimed at it (issue 41).
+
+Each target module is mutated by cosmic-ray (one small change at a time: an operator, a
+comparison, a number, a boolean, a loop) and the fast tests named for it run against
+each mutant; a mutant the tests pass is a survivor. Writes, under --out:
+``NAME.toml`` and ``NAME.sqlite`` (cosmic-ray's config and session, resumable: a second
+run continues where the first stopped), ``report.json`` and ``report.md`` (per target:
+mutants, killed, survivors with their diff, the equivalent ones with their reason).
+
+Why cosmic-ray: it mutates the checkout's files in place and restores them, so the
+tests import the mutant through the editable install of this checkout (the package-dir
+layout maps ``aligngym.estimators`` to ``estimators/``); mutmut 3 runs the tests on a
+copy under ``mutants/`` that the installed package would not import.
+
+Run it in a checkout of its own (the files are mutated while it runs), installed
+editable (``pip install -e '.[test]' cosmic-ray``):
+
+    git clone . /tmp/mutation && cd /tmp/mutation && python benchmarks/mutation.py
+
+Excluded operators (``EXCLUDED_OPERATORS``): arithmetic replaced by a bitwise or shift
+operator. On the float arrays of this code they raise TypeError at the first call:
+every test fails on them, so they would only inflate the kill rate.
+"""
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+FAST = "-x -q -n 0 -p no:cacheprovider"
+TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
+    # module: (the fast tests aimed at it, the functions mutated (None: all))
+    "estimators/filters.py": ("tests/test_filters.py tests/test_linear_exactness.py", None),
+    "estimators/rules.py": ("tests/test_rules.py tests/test_linear_exactness.py", None),
+    "estimators/metrics.py": ("tests/test_reliability.py tests/test_coarse.py "
+                              "tests/test_floors_ship.py -k 'sigma or diverg or floor or "
+                              "coarse'", None),
+    "estimators/linalg.py": ("tests/test_filters.py tests/test_linear_exactness.py "
+                             "tests/test_rules.py", None),
+    "estimators/adaptation.py": ("tests/test_adaptation.py", None),
+    "estimators/strapdown.py": ("tests/test_strapdown.py -k 'not fidelity'", None),
+    "sensors/imu.py": ("tests/test_imu.py", None),
+    "sensors/encoder.py": ("tests/test_imu.py", None),
+    "scenarios/experiments/paper000.py": ("tests/test_nees_maps.py", ("nees",)),
+    "scenarios/experiments/paper001.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
+    "scenarios/experiments/paper002.py": ("tests/test_nees_maps.py", ("nees",)),
+    "scenarios/experiments/paper003.py": ("tests/test_nees_maps.py", ("nees",)),
+    "scenarios/experiments/paper004.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
+}
+EXCLUDED_OPERATORS = [r"core/ReplaceBinaryOperator_(Add|Sub|Mul|Div|FloorDiv|Mod|Pow)_"
+                      r"(BitOr|BitAnd|BitXor|LShift|RShift)$"]
+EQUIVALENT: dict[str, str] = {}
+"""Survivors shown equivalent, by ``module:line operator``, with the reason: the mutant
+computes the same numbers as the original for every input the code can receive."""
+
+
+def function_lines(module: Path, names: tuple[str, ...]) -> list[str]:
+    """Line ranges "a-b" of the module's functions and methods with the given names."""
+    tree = ast.parse(module.read_text())
+    return [f"{node.lineno}-{node.end_lineno}" for node in ast.walk(tree)
+            if isinstance(node, ast.FunctionDef) and node.name in names]
+
+
+def config_text(module: str, tests: str, functions: tuple[str, ...] | None) -> str:
+    """cosmic-ray's TOML config for one target."""
+    lines = [
+        "[cosmic-ray]", f'module-path = "{module}"', "timeout = 60.0",
+        "excluded-modules = []",
+        "test-command = " + json.dumps(f"{sys.executable} -m pytest {FAST} {tests}"),
+        "", "[cosmic-ray.distributor]", 'name = "local"', "",
+        "[cosmic-ray.filters.operators-filter]",
+        "exclude-operators = " + json.dumps(EXCLUDED_OPERATORS)]
+    if functions:
+        ranges = function_lines(ROOT / module, functions)
+        lines += ["", "[cosmic-ray.filters.line-filter]",
+                  f'lines = {{ "{module}" = {json.dumps(ranges)} }}']
+    return "\n".join(lines) + "\n"
+
+
+def run_target(module: str, out: Path) -> dict:
+    """Mutate one module (or continue its session) and summarise the session."""
+    tests, functions = TARGETS[module]
+    name = module.replace("/", "_").removesuffix(".py")
+    config, session = out / f"{name}.toml", out / f"{name}.sqlite"
+    config.write_text(config_text(module, tests, functions))
+    bin_dir = Path(sys.executable).parent
+    if not session.exists():
+        subprocess.run([bin_dir / "cosmic-ray", "init", config, session], check=True,
+                       cwd=ROOT)
+        subprocess.run([bin_dir / "cr-filter-operators", session, config], check=True,
+                       cwd=ROOT)
+        if functions:
+            subprocess.run([bin_dir / "cr-filter-lines", "--config", config, session],
+                           check=True, cwd=ROOT)
+    start = time.monotonic()
+    subprocess.run([bin_dir / "cosmic-ray", "exec", config, session], check=True, cwd=ROOT)
+    return summarise(module, session, time.monotonic() - start)
+
+
+def summarise(module: str, session: Path, seconds: float) -> dict:
+    """Counts and survivors of a session (skipped mutants left out)."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import TestOutcome, WorkerOutcome
+    counts = {"mutants": 0, "killed": 0, "survived": 0, "incompetent": 0, "pending": 0}
+    survivors = []
+    with use_db(str(session), WorkDB.Mode.open) as db:
+        results = dict(db.results)
+        for item in db.work_items:
+            result = results.get(item.job_id)
+            if result is not None and result.worker_outcome == WorkerOutcome.SKIPPED:
+                continue
+            counts["mutants"] += 1
+            if result is None:
+                counts["pending"] += 1
+            elif result.test_outcome == TestOutcome.SURVIVED:
+                counts["survived"] += 1
+                m = item.mutations[0]
+                key = f"{module}:{m.start_pos[0]} {m.operator_name}"
+                survivors.append({"key": key, "diff": result.diff or "",
+                                  "equivalent": EQUIVALENT.get(key, "")})
+            elif result.test_outcome == TestOutcome.INCOMPETENT:
+                counts["incompetent"] += 1
+            else:
+                counts["killed"] += 1
+    equivalent = sum(bool(s["equivalent"]) for s in survivors)
+    competent = counts["mutants"] - counts["pending"] - counts["incompetent"] - equivalent
+    counts["equivalent"] = equivalent
+    counts["kill_rate_non_equivalent"] = (counts["killed"] / competent if competent else None)
+    return {"module": module, "tests": TARGETS[module][0], **counts,
+            "seconds": round(seconds, 1), "survivors": survivors}
+
+
+def write_report(rows: list[dict], out: Path) -> None:
+    """report.json and report.md (a table per target, then the survivors)."""
+    (out / "report.json").write_text(json.dumps(rows, indent=1) + "\n")
+    lines = ["| module | mutants | killed | survived | equivalent | incompetent | "
+             "kill rate (non-equivalent) | fast tests |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        rate = ("-" if r["kill_rate_non_equivalent"] is None
+                else f"{100 * r['kill_rate_non_equivalent']:.1f} %")
+        lines.append(f"| `{r['module']}` | {r['mutants']} | {r['killed']} | {r['survived']} "
+                     f"| {r['equivalent']} | {r['incompetent']} | {rate} | `{r['tests']}` |")
+    for r in rows:
+        for s in r["survivors"]:
+            lines += ["", f"### {s['key']}" + (f" (equivalent: {s['equivalent']})"
+                                               if s["equivalent"] else ""),
+                      "```diff", s["diff"].strip(), "```"]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("modules", nargs="*", help="targets (default: all): "
+                        + ", ".join(TARGETS))
+    parser.add_argument("--out", default="mutation-report", help="output directory")
+    parser.add_argument("--report-only", action="store_true",
+                        help="summarise the sessions in --out without running mutants")
+    args = parser.parse_args(argv)
+    unknown = sorted(set(args.modules) - set(TARGETS))
+    if unknown:
+        parser.error(f"unknown target {unknown[0]!r}; valid: " + ", ".join(TARGETS))
+    import aligngym
+    if not Path(aligngym.__file__).resolve().is_relative_to(ROOT):
+        parser.error(f"aligngym imports from {aligngym.__file__}, not this checkout "
+                     f"({ROOT}): pip install -e . here first")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for module in args.modules or TARGETS:
+        name = module.replace("/", "_").removesuffix(".py")
+        if args.report_only:
+            if (out / f"{name}.sqlite").exists():
+                rows.append(summarise(module, out / f"{name}.sqlite", 0.0))
+            continue
+        rows.append(run_target(module, out))
+        write_report(rows, out)
+        print(f"{module}: {rows[-1]['killed']}/{rows[-1]['mutants']} killed, "
+              f"{rows[-1]['survived']} survived ({rows[-1]['seconds']:.0f} s)", flush=True)
+    write_report(rows, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
