@@ -1,0 +1,65 @@
+"""The alignment metrics against closed forms and hand computations (SciPy's rotations
+for the attitude, Somigliana's normal gravity written out here)."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from aligngym.estimators.metrics import (convergence_time, euler_error, misalignment, nees,
+                                         static_alignment_floor)
+
+DEG = np.pi / 180
+
+
+def test_misalignment_is_the_rotation_vector_from_the_estimate_to_the_truth():
+    phi = np.array([[0.01, -0.02, 0.3], [1e-5, 2e-5, -3e-5]])
+    C_est = Rotation.from_euler("zxy", [[40, 3, -2], [-170, 1, 5]], degrees=True).as_matrix()
+    C_true = Rotation.from_rotvec(phi).as_matrix() @ C_est
+    np.testing.assert_allclose(misalignment(C_true, C_est), phi, rtol=1e-9, atol=1e-15)
+
+
+def _body_to_enu(pitch, roll, heading_cw):
+    """C_b^n of a body at pitch, roll (deg) and heading (deg clockwise from north), ENU:
+    Rz(-heading) Rx(pitch) Ry(roll), SciPy's intrinsic sequence."""
+    return Rotation.from_euler("ZXY", [-heading_cw, pitch, roll], degrees=True).as_matrix()
+
+
+def test_euler_error_is_pitch_roll_and_clockwise_heading_wrapped():
+    true = _body_to_enu(2.0, -1.0, 179.0)
+    est = _body_to_enu(2.5, -1.25, -178.0)            # heading 2 deg past north-south
+    np.testing.assert_allclose(euler_error(true, est) / DEG, [0.5, -0.25, 3.0], atol=1e-9)
+    np.testing.assert_allclose(euler_error(est, true) / DEG, [-0.5, 0.25, -3.0], atol=1e-9)
+    np.testing.assert_allclose(euler_error(true, true), 0.0, atol=1e-12)
+
+
+def test_convergence_time_is_the_first_time_after_which_the_error_stays_within():
+    t = np.arange(6.0)
+    error = np.array([[5, 3, 0.5, 2, 0.5, 0.1],        # back outside at 3: converged at 4
+                      [0.1, 0.1, -0.2, 0.1, 0.1, 0.1],  # always within: at t[0]
+                      [5, 5, 5, 5, 5, 5],              # never: t[-1]
+                      [5, 5, 5, 5, 5, -0.5]])          # only the last epoch: t[-1]
+    np.testing.assert_array_equal(convergence_time(t, error, 1.0), [4.0, 0.0, 5.0, 5.0])
+    np.testing.assert_array_equal(convergence_time(t, error, 0.2), [5.0, 0.0, 5.0, 5.0])
+
+
+def test_nees_is_the_mahalanobis_square_by_hand():
+    P = np.array([[[4.0, 1.0], [1.0, 2.0]], [[1.0, 0.0], [0.0, 9.0]]])
+    e = np.array([[1.0, -1.0], [2.0, 3.0]])
+    # [[4, 1], [1, 2]]^-1 = [[2, -1], [-1, 4]] / 7: (2 + 2 + 4) / 7 for (1, -1)
+    np.testing.assert_allclose(nees(e, P), [8.0 / 7.0, 4.0 + 1.0], rtol=1e-12)
+
+
+@pytest.mark.parametrize("lat_deg", [0.0, 40.0, -60.0])
+def test_static_floor_is_the_closed_form(lat_deg):
+    """phi_E = -nabla_N / g, phi_N = nabla_E / g, phi_U = -eps_E / (Omega cos L) + phi_N
+    tan L, biases given in a frame turned 30 deg about Up from ENU."""
+    lat = lat_deg * DEG
+    s2 = np.sin(lat) ** 2
+    g = 9.7803253359 * (1 + 0.00193185265241 * s2) / np.sqrt(1 - 0.00669437999013 * s2)
+    C = Rotation.from_euler("z", 30, degrees=True).as_matrix()
+    eps_b, nabla_b = np.array([1e-7, -2e-7, 3e-7]), np.array([1e-3, 5e-4, -2e-3])
+    eps, nabla = C @ eps_b, C @ nabla_b
+    phi_N = nabla[0] / g
+    expected = [-nabla[1] / g, phi_N,
+                -eps[0] / (7.2921151467e-5 * np.cos(lat)) + phi_N * np.tan(lat)]
+    np.testing.assert_allclose(static_alignment_floor(C, eps_b, nabla_b, lat), expected,
+                               rtol=1e-9)
