@@ -50,42 +50,6 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     "sensors/imu.py": ("tests/test_imu.py", None),
     "sensors/encoder.py": ("tests/test_imu.py", None),
 }
-EXCLUDED_OPERATORS``): arithmetic replaced by a bitwise or shift
-operator. On the float arrays of this code they raise TypeError at the first call:
-every test fails on them, so they would only inflate the kill rate.
-"""
-from __future__ import annotations
-
-import argparse
-import ast
-import json
-import subprocess
-import sys
-import time
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[1]
-
-FAST = "-x -q -n 0 -p no:cacheprovider"
-TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
-    # module: (the fast tests aimed at it, the functions mutated (None: all))
-    "estimators/filters.py": ("tests/test_filters.py tests/test_linear_exactness.py", None),
-    "estimators/rules.py": ("tests/test_rules.py tests/test_linear_exactness.py", None),
-    "estimators/metrics.py": ("tests/test_reliability.py tests/test_coarse.py "
-                              "tests/test_floors_ship.py -k 'sigma or diverg or floor or "
-                              "coarse'", None),
-    "estimators/linalg.py": ("tests/test_filters.py tests/test_linear_exactness.py "
-                             "tests/test_rules.py", None),
-    "estimators/adaptation.py": ("tests/test_adaptation.py", None),
-    "estimators/strapdown.py": ("tests/test_strapdown.py -k 'not fidelity'", None),
-    "sensors/imu.py": ("tests/test_imu.py", None),
-    "sensors/encoder.py": ("tests/test_imu.py", None),
-    "scenarios/experiments/paper000.py": ("tests/test_nees_maps.py", ("nees",)),
-    "scenarios/experiments/paper001.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
-    "scenarios/experiments/paper002.py": ("tests/test_nees_maps.py", ("nees",)),
-    "scenarios/experiments/paper003.py": ("tests/test_nees_maps.py", ("nees",)),
-    "scenarios/experiments/paper004.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
-}
 EXCLUDED_OPERATORS = [r"core/ReplaceBinaryOperator_(Add|Sub|Mul|Div|FloorDiv|Mod|Pow)_"
                       r"(BitOr|BitAnd|BitXor|LShift|RShift)$"]
 EQUIVALENT: dict[str, str] = {}
