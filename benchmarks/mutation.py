@@ -52,9 +52,32 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
 }
 EXCLUDED_OPERATORS = [r"core/ReplaceBinaryOperator_(Add|Sub|Mul|Div|FloorDiv|Mod|Pow)_"
                       r"(BitOr|BitAnd|BitXor|LShift|RShift)$"]
-EQUIVALENT: dict[str, str] = {}
-"""Survivors shown equivalent, by ``module:line operator``, with the reason: the mutant
-computes the same numbers as the original for every input the code can receive."""
+SQUARE = ("A and P are (B, n, n) batches of square matrices: shape[-1], shape[1], "
+          "shape[-2] and shape[+1] are all n")
+EQUIVALENT: dict[str, str] = {
+    "estimators/linalg.py:13: np.linalg.cholesky(np.where(ok[:, None, None], A, "
+    "np.eye(A.shape[+1])))": SQUARE,
+    "estimators/linalg.py:13: np.linalg.cholesky(np.where(ok[:, None, None], A, "
+    "np.eye(A.shape[~1])))": SQUARE,
+    "estimators/linalg.py:13: np.linalg.cholesky(np.where(ok[:, None, None], A, "
+    "np.eye(A.shape[1])))": SQUARE,
+    "estimators/linalg.py:13: np.linalg.cholesky(np.where(ok[:, None, None], A, "
+    "np.eye(A.shape[- 2])))": SQUARE,
+    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "axis2=-1), 0.0) / P.shape[+1]": SQUARE,
+    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "axis2=-1), 0.0) / P.shape[~1]": SQUARE,
+    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "axis2=-1), 0.0) / P.shape[1]": SQUARE,
+    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "axis2=-1), 0.0) / P.shape[- 2]": SQUARE,
+    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "axis2=-1), -1.0) / P.shape[-1]": "a trace in (-1, 0) makes the floor negative, "
+    "and the next line raises any floor below 1e-300 to 1e-300, as for a trace of 0",
+}
+"""Survivors shown equivalent, by ``module:line: the mutated line``, with the reason:
+the mutant computes the same numbers as the original for every input the code can
+receive."""
 
 
 def function_lines(module: Path, names: tuple[str, ...]) -> list[str]:
@@ -118,7 +141,7 @@ def summarise(module: str, session: Path, seconds: float) -> dict:
             elif result.test_outcome == TestOutcome.SURVIVED:
                 counts["survived"] += 1
                 m = item.mutations[0]
-                key = f"{module}:{m.start_pos[0]} {m.operator_name}"
+                key = f"{module}:{m.start_pos[0]}: " + _mutated_line(result.diff or "")
                 survivors.append({"key": key, "diff": result.diff or "",
                                   "equivalent": EQUIVALENT.get(key, "")})
             elif result.test_outcome == TestOutcome.INCOMPETENT:
@@ -131,6 +154,12 @@ def summarise(module: str, session: Path, seconds: float) -> dict:
     counts["kill_rate_non_equivalent"] = (counts["killed"] / competent if competent else None)
     return {"module": module, "tests": TARGETS[module][0], **counts,
             "seconds": round(seconds, 1), "survivors": survivors}
+
+
+def _mutated_line(diff: str) -> str:
+    """The mutant's changed line, stripped (the key of ``EQUIVALENT``)."""
+    return next((line[1:].strip() for line in diff.splitlines()
+                 if line.startswith("+") and not line.startswith("+++")), "")
 
 
 def write_report(rows: list[dict], out: Path) -> None:

@@ -13,19 +13,20 @@ def _with_eigenvalues(values, seed=0):
     return (Q * np.asarray(values, float)) @ Q.T, Q
 
 
-@pytest.mark.parametrize("bad", [0, 1, 2])
+@pytest.mark.parametrize("bad", [0, 1, 3])
 def test_positive_definite_finds_the_bad_member_wherever_it_sits(bad):
+    """Four 3 x 3 members (a batch size other than the matrices' size)."""
     good, _ = _with_eigenvalues([4.0, 1.0, 0.25])
-    members = [good.copy() for _ in range(3)]
+    members = [good.copy() for _ in range(4)]
     members[bad] = _with_eigenvalues([4.0, 1.0, -1e-3], seed=1)[0]
-    expected = [b != bad for b in range(3)]
+    expected = [b != bad for b in range(4)]
     assert positive_definite(np.stack(members)).tolist() == expected
     members[bad] = good.copy()
     members[bad][0, 1] = np.nan
     assert positive_definite(np.stack(members)).tolist() == expected
     members[bad] = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])  # PSD
     assert positive_definite(np.stack(members)).tolist() == expected
-    assert positive_definite(np.stack([good] * 3)).tolist() == [True] * 3
+    assert positive_definite(np.stack([good] * 4)).tolist() == [True] * 4
 
 
 def test_floor_eigenvalues_raises_only_those_below_the_floor():

@@ -36,9 +36,25 @@ def test_convergence_time_is_the_first_time_after_which_the_error_stays_within()
     error = np.array([[5, 3, 0.5, 2, 0.5, 0.1],        # back outside at 3: converged at 4
                       [0.1, 0.1, -0.2, 0.1, 0.1, 0.1],  # always within: at t[0]
                       [5, 5, 5, 5, 5, 5],              # never: t[-1]
-                      [5, 5, 5, 5, 5, -0.5]])          # only the last epoch: t[-1]
-    np.testing.assert_array_equal(convergence_time(t, error, 1.0), [4.0, 0.0, 5.0, 5.0])
-    np.testing.assert_array_equal(convergence_time(t, error, 0.2), [5.0, 0.0, 5.0, 5.0])
+                      [5, 5, 5, 5, 5, -0.5],           # only the last epoch: t[-1]
+                      [-5, 0.1, 0.1, 0.1, 0.1, 0.1]])  # only the first outside: t[1]
+    np.testing.assert_array_equal(convergence_time(t, error, 1.0), [4.0, 0.0, 5.0, 5.0, 1.0])
+    np.testing.assert_array_equal(convergence_time(t, error, 0.2), [5.0, 0.0, 5.0, 5.0, 1.0])
+
+
+def test_divergence_is_beyond_five_times_three_sigma_and_the_floor():
+    """ratio 5 x 3 sigma = 15 sigma, and 1 arcmin: an error of exactly 15 sigma is not
+    diverged, 15.01 sigma is; below the 1' floor nothing is, however small the sigma."""
+    from aligngym.estimators.metrics import DivergenceRule
+    arcmin = DEG / 60
+    error = np.array([[0.0, 0.0, 15.0], [0.0, 15.01, 0.0], [0.9 * arcmin, 0.0, 0.0],
+                      [1.1 * arcmin, 0.0, 0.0], [-15.01, 0.0, 0.0]])
+    sigma = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1e-3 * arcmin] * 3,
+                      [1e-3 * arcmin] * 3, [1.0, 1.0, 1.0]])
+    diverged, reason = DivergenceRule(sigma_bound=np.inf).apply(
+        error, sigma, np.zeros(5, bool), [""] * 5)
+    assert diverged.tolist() == [False, True, False, True, True]
+    assert reason[1] == "final error > 5 x 3 sigma"
 
 
 def test_nees_is_the_mahalanobis_square_by_hand():
