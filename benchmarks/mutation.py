@@ -79,6 +79,36 @@ EQUIVALENT: dict[str, str] = {
 the mutant computes the same numbers as the original for every input the code can
 receive."""
 
+_M = "estimators/metrics.py:"
+_NEVER = ("convergence_time: when last_out = K - 1 the other branch, t[min(last_out + 1, K - "
+          "1)], is t[-1] too, so the condition only chooses between equal values (or, "
+          "mutated, is never true, or true only where the two are equal)")
+_TWO_D = "final_error and final_sigma are (B, 3): axis 1 is axis -1"
+_BOOL_ADD = "numpy adds boolean arrays as a logical or (and multiplies them as an and)"
+EQUIVALENT.update({
+    _M + "23: return (d - np.pi) % (2 * np.pi) - np.pi": "(d - pi) mod 2 pi = (d + pi) mod 2 pi",
+    **{_M + f"32: return np.where(last_out {c}, t[-1], t[idx])": _NEVER for c in (
+        "== t.size * 1", "== t.size ** 1", "== t.size + 1", "== t.size - 0", "== t.size / 1",
+        "== t.size // 1", "== t.size - 2", "> t.size - 1", ">= t.size - 1",
+        "is t.size - 1")},
+    _M + '37: return np.einsum("...i,...i->...", error, np.linalg.solve(P, error[..., '
+         'None])[..., -1])': "the solve's last axis has length 1: index -1 is index 0",
+    _M + "40: @dataclass(frozen=False)": "no code assigns to a rule's fields; frozen only "
+                                         "refuses an assignment",
+    _M + "56: * (np.abs(final_error) > self.floor), axis=-1)": _BOOL_ADD,
+    _M + "56: & (np.abs(final_error) > self.floor), axis=+1)": _TWO_D,
+    _M + "56: & (np.abs(final_error) > self.floor), axis=1)": _TWO_D,
+    _M + "57: blown = np.any(~(final_sigma <= self.sigma_bound), axis=+1)   # NaN counts": _TWO_D,
+    _M + "57: blown = np.any(~(final_sigma <= self.sigma_bound), axis=1)   # NaN counts": _TWO_D,
+    _M + '58: broken = np.any(~np.isfinite(final_error), axis=+1)          # never "inside"':
+        _TWO_D,
+    _M + '58: broken = np.any(~np.isfinite(final_error), axis=1)          # never "inside"':
+        _TWO_D,
+    _M + "64: return flagged + broken | lost | blown, out": _BOOL_ADD,
+    _M + "64: return flagged | broken + lost | blown, out": _BOOL_ADD,
+    _M + "64: return flagged | broken | lost + blown, out": _BOOL_ADD,
+})
+
 
 def function_lines(module: Path, names: tuple[str, ...]) -> list[str]:
     """Line ranges "a-b" of the module's functions and methods with the given names."""

@@ -57,6 +57,24 @@ def test_divergence_is_beyond_five_times_three_sigma_and_the_floor():
     assert reason[1] == "final error > 5 x 3 sigma"
 
 
+def test_divergence_at_its_edges_and_when_several_reasons_hold():
+    """An error of exactly the floor, a sigma of exactly pi: neither is diverged; two
+    reasons at once (flagged and not finite, lost and not finite, lost and blown) are
+    still diverged."""
+    from aligngym.estimators.metrics import DivergenceRule
+    rule = DivergenceRule()
+    error = np.array([[rule.floor, 0.0, 0.0], [0.0, 0.0, 0.0], [np.nan, 0.0, 0.0],
+                      [np.nan, 0.0, 100.0], [0.0, 0.0, 1000.0]])
+    sigma = np.array([[1e-9] * 3, [1.0, 1.0, np.pi], [1.0] * 3, [1.0] * 3,
+                      [1.0, 1.0, 10.0]])
+    flagged = np.array([False, False, True, False, False])
+    diverged, reason = rule.apply(error, sigma, flagged, ["", "", "frozen", "", ""])
+    assert diverged.tolist() == [False, False, True, True, True]
+    assert diverged.dtype == bool
+    assert reason == ["", "", "frozen", "final error not finite",
+                      "final error > 5 x 3 sigma"]
+
+
 def test_nees_is_the_mahalanobis_square_by_hand():
     P = np.array([[[4.0, 1.0], [1.0, 2.0]], [[1.0, 0.0], [0.0, 9.0]]])
     e = np.array([[1.0, -1.0], [2.0, 3.0]])
@@ -79,3 +97,6 @@ def test_static_floor_is_the_closed_form(lat_deg):
                 -eps[0] / (7.2921151467e-5 * np.cos(lat)) + phi_N * np.tan(lat)]
     np.testing.assert_allclose(static_alignment_floor(C, eps_b, nabla_b, lat), expected,
                                rtol=1e-9)
+    batched = static_alignment_floor(np.stack([C, C]), np.stack([eps_b, 2 * eps_b]),
+                                     np.stack([nabla_b, 2 * nabla_b]), lat)
+    np.testing.assert_allclose(batched, [expected, 2 * np.array(expected)], rtol=1e-9)
