@@ -126,3 +126,39 @@ def test_the_attitude_reads_the_misalignment_and_its_variance(probe):
             rtol = 2e-2                    # the Euler error of a turn, near the truth
         np.testing.assert_allclose(second_difference(exp, episodes, (flat, error_n), moved),
                                    2 * DELTA ** 2, rtol=rtol, err_msg=f"attitude axis {axis}")
+
+
+BIAS_TRUTH = {
+    # experiment: {state index: (the episode's drawn bias, its component)}
+    "000": {**{9 + j: ("gyro_bias", j) for j in range(3)},
+            **{12 + j: ("accel_bias", j) for j in range(3)}},
+    "001": {**{9 + j: ("gyro_bias", j) for j in range(3)},
+            **{12 + j: ("accel_bias", j) for j in range(3)}},
+    "002": {5: ("accel_bias", 0), 6: ("accel_bias", 1),
+            **{7 + j: ("gyro_bias", j) for j in range(3)}},
+    "003": {**{6 + j: ("gyro_bias", j) for j in range(3)},
+            **{9 + j: ("accel_bias", j) for j in range(3)}},
+    "004": {**{9 + j: ("gyro_bias", j) for j in range(3)},
+            **{12 + j: ("accel_bias", j) for j in range(3)}},
+}
+
+
+def test_the_truth_enters_as_the_estimate_does(probe):
+    """The drawn bias and the estimate moved by the same delta leave the NEES unchanged
+    (the error is their difference); the truth moved
+    alone changes it."""
+    exp, fine, episodes, error_n, _ = probe
+    from dataclasses import replace as with_fields
+    for index, (name, j) in BIAS_TRUTH[exp.paper].items():
+        step = np.sqrt(fine.P[0, -1, index, index])
+        x = fine.x.copy()
+        x[..., index] += step
+        moved = []
+        for e in episodes:
+            bias = getattr(e, name).astype(float).copy()
+            bias[j] += step
+            moved.append(with_fields(e, **{name: bias}))
+        base = exp.nees(fine, episodes, error_n)
+        np.testing.assert_allclose(exp.nees(replace(fine, x=x), moved, error_n), base,
+                                   rtol=1e-6, err_msg=f"state {index}")
+        assert not np.allclose(exp.nees(fine, moved, error_n), base, rtol=1e-9), index
