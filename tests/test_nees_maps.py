@@ -16,21 +16,29 @@ import pytest
 from aligngym.scenarios.campaign import run_campaign
 from aligngym.scenarios.experiments import experiment
 
+def _biases(gyro: int, accel: int, fed_back: bool, accel_axes: int = 3) -> list:
+    """The bias states: (state index, the model's series key of its accumulated estimate
+    or None, (the episode's drawn bias, its component))."""
+    return ([(gyro + j, "gyro_bias" if fed_back else None, ("gyro_bias", j))
+             for j in range(3)]
+            + [(accel + j, "accel_bias" if fed_back else None, ("accel_bias", j))
+               for j in range(accel_axes)])
+
+
 SHORT = {
-    # experiment: (filter, settings, [(state index, series key or None)], attitude)
+    # experiment: (filter, settings, [(state index, series key or None, its truth or
+    # None)], attitude)
     "paper000": ("ekf", {"fine_duration": 20.0, "starts": ("coarse",)},
-                 [(i, "gyro_bias") for i in range(9, 12)]
-                 + [(i, "accel_bias") for i in range(12, 15)], ("C_s_n", (0, 1, 2))),
+                 _biases(9, 12, fed_back=True), ("C_s_n", (0, 1, 2))),
     "paper001": ("lckf", {"fine_duration": 20.0},
-                 [(i, None) for i in range(0, 6)] + [(i, "gyro_bias") for i in range(9, 12)]
-                 + [(i, "accel_bias") for i in range(12, 15)], ("error_n", (6, 7, 8))),
-    "paper002": ("ekf", {"fine_duration": 20.0}, [(i, None) for i in range(5, 10)],
+                 [(i, None, None) for i in range(0, 6)] + _biases(9, 12, fed_back=True),
+                 ("error_n", (6, 7, 8))),
+    "paper002": ("ekf", {"fine_duration": 20.0}, _biases(7, 5, False, accel_axes=2),
                  ("C_s_n", (0, 1, 2))),
-    "paper003": ("kf", {"fine_duration": 20.0}, [(i, None) for i in range(6, 12)],
+    "paper003": ("kf", {"fine_duration": 20.0}, _biases(6, 9, fed_back=False),
                  ("error_n", (3, 4, 5))),
-    "paper004": ("ekf", {"fine_duration": 20.0},
-                 [(i, "gyro_bias") for i in range(9, 12)]
-                 + [(i, "accel_bias") for i in range(12, 15)], ("error_n", (0, 1, 2))),
+    "paper004": ("ekf", {"fine_duration": 20.0}, _biases(9, 12, fed_back=True),
+                 ("error_n", (0, 1, 2))),
 }
 DELTA = 1.0
 """The probe's step, in units of the state's sigma sqrt(v_i) (large against the
@@ -71,7 +79,7 @@ def test_each_state_reads_its_own_component_and_variance(probe):
     exp, fine, episodes, error_n, (_, _, states, _) = probe
     variances = fine.P[0, 0].diagonal()
     assert exp.nees_dof() == len(states) + 3
-    for index, _ in states:
+    for index, _, _ in states:
         step = DELTA * np.sqrt(variances[index])
 
         def moved(sign):
@@ -85,7 +93,7 @@ def test_each_state_reads_its_own_component_and_variance(probe):
 def test_the_accumulated_estimate_and_the_state_are_one_estimate(probe):
     """Before feedback (the estimate in the state) and after (in the model's series)."""
     exp, fine, episodes, error_n, (_, _, states, _) = probe
-    fed = [(i, key) for i, key in states if key is not None]
+    fed = [(i, key) for i, key, _ in states if key is not None]
     if not fed:
         pytest.skip(f"paper{exp.paper}'s bias states are the whole estimate")
     variances = fine.P[0, 0].diagonal()
@@ -128,28 +136,13 @@ def test_the_attitude_reads_the_misalignment_and_its_variance(probe):
                                    2 * DELTA ** 2, rtol=rtol, err_msg=f"attitude axis {axis}")
 
 
-BIAS_TRUTH = {
-    # experiment: {state index: (the episode's drawn bias, its component)}
-    "000": {**{9 + j: ("gyro_bias", j) for j in range(3)},
-            **{12 + j: ("accel_bias", j) for j in range(3)}},
-    "001": {**{9 + j: ("gyro_bias", j) for j in range(3)},
-            **{12 + j: ("accel_bias", j) for j in range(3)}},
-    "002": {5: ("accel_bias", 0), 6: ("accel_bias", 1),
-            **{7 + j: ("gyro_bias", j) for j in range(3)}},
-    "003": {**{6 + j: ("gyro_bias", j) for j in range(3)},
-            **{9 + j: ("accel_bias", j) for j in range(3)}},
-    "004": {**{9 + j: ("gyro_bias", j) for j in range(3)},
-            **{12 + j: ("accel_bias", j) for j in range(3)}},
-}
-
-
 def test_the_truth_enters_as_the_estimate_does(probe):
     """The drawn bias and the estimate moved by the same delta leave the NEES unchanged
     (the error is their difference); the truth moved
     alone changes it."""
-    exp, fine, episodes, error_n, _ = probe
+    exp, fine, episodes, error_n, (_, _, states, _) = probe
     from dataclasses import replace as with_fields
-    for index, (name, j) in BIAS_TRUTH[exp.paper].items():
+    for index, _, (name, j) in [s for s in states if s[2] is not None]:
         step = np.sqrt(fine.P[0, -1, index, index])
         x = fine.x.copy()
         x[..., index] += step
