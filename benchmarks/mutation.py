@@ -38,7 +38,8 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     # module: (the fast tests aimed at it, the functions mutated (None: all))
     "estimators/linalg.py": ("tests/test_linalg.py tests/test_filters.py", None),
     "estimators/metrics.py": ("tests/test_metrics.py tests/test_reliability.py", None),
-    "estimators/filters.py": ("tests/test_filters.py tests/test_linear_exactness.py", None),
+    "estimators/filters.py": ("tests/test_filters.py tests/test_filter_guards.py "
+                             "tests/test_linear_exactness.py", None),
     "scenarios/experiments/paper000.py": ("tests/test_nees_maps.py", ("nees",)),
     "scenarios/experiments/paper001.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
     "scenarios/experiments/paper002.py": ("tests/test_nees_maps.py", ("nees",)),

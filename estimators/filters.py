@@ -124,15 +124,13 @@ class GaussianFilter:
             raise RuntimeError("update() needs a predict() first")
         PhiPPhi, Q = self._pending
         self._pending = None
-        t, live = observation.t, self.live
-        valid = observation.valid() & live[:, None]
-        z = np.where(valid, observation.z, 0.0)
-        R = observation.noise
+        t, R = observation.t, observation.noise
         P_pred = symmetric(PhiPPhi + Q)
         finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) & np.all(np.isfinite(self.x), -1)
-        self.health.flag(~finite & live, t, "predicted state or covariance NaN/inf")
+        # flag() passes over episodes already diverged: no mask by the live ones needed
+        self.health.flag(~finite, t, "predicted state or covariance NaN/inf")
         live = self.live
-        valid = valid & live[:, None]
+        valid = observation.valid() & live[:, None]
         z = np.where(valid, observation.z, 0.0)
         P_pred = self._repair(P_pred, t)
         x_in, P_pred = self._harmless(self.x, P_pred)
@@ -183,14 +181,14 @@ class GaussianFilter:
                 P_zz = np.where(cross_valid, P_zz, 0.0)
             HP = np.swapaxes(P_xz, -1, -2)
             S = P_zz + R
-        S_ok = positive_definite(S)
-        self.health.flag(~S_ok & live, t, "innovation covariance not positive definite")
-        live = live & S_ok
+        self.health.flag(~positive_definite(S), t, "innovation covariance not positive "
+                         "definite")
+        live = self.live
         S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
         S_inv_HP, solved = solve_each(S_safe, HP)
         if not solved.all():               # an episode's S singular to working precision
-            self.health.flag(~solved & live, t, "innovation covariance singular")
-            live = live & solved
+            self.health.flag(~solved, t, "innovation covariance singular")
+            live = self.live
             S_inv_HP = np.where(solved[:, None, None], S_inv_HP, 0.0)
         K = np.swapaxes(S_inv_HP, -1, -2)
         x_new = self.x + np.einsum("bij,bj->bi", K, innovation)
@@ -204,8 +202,8 @@ class GaussianFilter:
             P_new = P_pred - K @ S @ np.swapaxes(K, -1, -2)
         P_new = symmetric(P_new)
         P_ok = positive_definite(P_new) & np.all(np.isfinite(x_new), axis=-1)
-        self.health.flag(~P_ok & live, t, "covariance not positive definite or state NaN")
-        live &= P_ok
+        self.health.flag(~P_ok, t, "covariance not positive definite or state NaN")
+        live = self.live
         self.x = np.where(live[:, None], x_new, self.x)
         self.P = np.where(live[:, None, None], P_new, self.P)
         self.innovation, self.S, self.valid = innovation, S, valid

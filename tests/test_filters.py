@@ -148,3 +148,166 @@ def test_cli_unknown_filter_lists_known_names(tmp_path):
     assert proc.returncode != 0
     assert "unknown filter 'nope'; known filters: ckf, ekf" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+# --- the catalogue against its documented values (SPEC 5, ALGORITHMS 4.3, 004) ---
+
+FADING = ["sakf", "makf", "imakf", "makf-n", "imakf-n", "sakf-r", "makf-r", "imakf-r",
+          "sgkf", "sgkf-gated"]
+
+
+@pytest.mark.parametrize("name", FADING)
+def test_the_fading_filters_take_the_fading_options(name):
+    policy = make_filter(name, rho=0.8, floor=1.5, cap=9.0).adaptation
+    assert (policy.rho, policy.floor, policy.cap) == (0.8, 1.5, 9.0)
+
+
+def test_the_other_filters_ignore_the_fading_options():
+    assert type(make_filter("kf", rho=0.8).adaptation).__name__ == "NoAdaptation"
+
+
+def test_the_strong_tracking_and_reduced_dimension_filters_as_documented():
+    """000's SGKF: 7 GH points on the nonlinear states; the fading starts 60 s after the
+    fine start (ALGORITHMS 4.3 step 7), derivative-free, only in motion; the gated
+    variant skips innovations beyond chi-square 0.999."""
+    for name in ("rdghkf", "sgkf", "sgkf-gated"):
+        assert make_filter(name).rule.order == 7
+    for name in ("sgkf", "sgkf-gated"):
+        policy = make_filter(name).adaptation
+        assert (policy.warm_up, policy.derivative_free, policy.in_motion_only) == (
+            60.0, True, True)
+    assert make_filter("sgkf-gated").adaptation.outlier_probability == 0.999
+    assert make_filter("sgkf").adaptation.outlier_probability is None
+
+
+def test_the_stukf_points_sit_at_sqrt_1_5_sigma():
+    """004's STUKF on 15 states: n + kappa = 1.5 (points at 1.22 sigma)."""
+    xi = make_filter("stukf").rule._weights(15)[0]
+    np.testing.assert_allclose(np.abs(xi).max(), np.sqrt(1.5), rtol=1e-12)
+
+
+@pytest.mark.parametrize("name, ok", [("sghkf-1", True), ("sghkf-6", True),
+                                      ("sghkf-7", False), ("ghkf-1", True),
+                                      ("ghkf-9", True), ("ghkf-0", False),
+                                      ("ghkf-10", False)])
+def test_the_level_and_order_ranges(name, ok):
+    if ok:
+        make_filter(name)
+        return
+    valid = "[1, 6]" if name.startswith("sghkf") else "[1, 9]"
+    with pytest.raises(UnknownFilter) as info:
+        make_filter(name)
+    assert str(info.value).endswith(f"must be an integer in {valid}")   # plain, no quotes
+
+
+def test_filter_needs_joins_the_rule_and_the_policy():
+    from aligngym.estimators.filters import filter_needs, register_filter
+    from aligngym.estimators.adaptation import MeasurementAxisFading
+    from aligngym.estimators.rules import ReducedGaussHermiteRule
+    register_filter("test-both-needs", lambda: ReducedGaussHermiteRule(3),
+                    MeasurementAxisFading, fading=True)
+    try:
+        assert filter_needs("test-both-needs") == {"conditionally-linear", "axes"}
+    finally:
+        FILTERS.pop("test-both-needs")
+
+
+@pytest.mark.parametrize("name", ["", "has space", "a,b", "a:b", 3])
+def test_register_filter_refuses_a_bad_name(name):
+    from aligngym.estimators.filters import register_filter
+    from aligngym.estimators.rules import CubatureRule
+    with pytest.raises(ValueError, match="a non-empty name without spaces"):
+        register_filter(name, CubatureRule)
+
+
+@pytest.mark.parametrize("name", ["kf", "sghkf-9", "ghkf-x"])
+def test_register_filter_refuses_a_built_in_name(name):
+    from aligngym.estimators.filters import register_filter
+    from aligngym.estimators.rules import CubatureRule
+    with pytest.raises(ValueError, match="is a built-in filter"):
+        register_filter(name, CubatureRule)
+
+
+def test_register_filter_checks_its_factories_and_passes_rho_to_a_fading_one():
+    from aligngym.estimators.filters import register_filter
+    from aligngym.estimators.adaptation import NoAdaptation, SingleFadingFactor
+    from aligngym.estimators.rules import CubatureRule
+    with pytest.raises(TypeError, match="must be factories"):
+        register_filter("t-a", CubatureRule(), NoAdaptation)
+    with pytest.raises(TypeError, match="must be factories"):
+        register_filter("t-a", CubatureRule, NoAdaptation())
+    with pytest.raises(TypeError, match=r"bad\(\) raised ZeroDivisionError"):
+        def bad():
+            return 1 / 0
+        register_filter("t-a", bad)
+    with pytest.raises(TypeError, match="returned NoAdaptation, not an IntegrationRule"):
+        register_filter("t-a", NoAdaptation)
+    with pytest.raises(TypeError, match=r"CubatureRule\(\) returned CubatureRule, not an Adapt"):
+        register_filter("t-a", CubatureRule, CubatureRule)
+    seen = {}
+
+    def fading(**options):
+        seen.update(options)
+        return SingleFadingFactor(**options)
+    try:
+        entry = register_filter("t-fading", CubatureRule, fading, fading=True)
+        assert seen == {"rho": 0.95} and entry.description == "user filter t-fading"
+        assert make_filter("t-fading", rho=0.7).adaptation.rho == 0.7
+        entry = register_filter("t-plain", CubatureRule, description="mine")
+        assert (entry.description, entry.fading, entry.model) == ("mine", False, "")
+        assert FILTERS["t-plain"] is entry
+    finally:
+        FILTERS.pop("t-fading", None), FILTERS.pop("t-plain", None)
+
+
+def user_entry():
+    from aligngym.estimators.filters import FilterEntry
+    from aligngym.estimators.adaptation import NoAdaptation
+    from aligngym.estimators.rules import CubatureRule
+    return FilterEntry(CubatureRule, NoAdaptation, "an entry")
+
+
+def user_rule():
+    from aligngym.estimators.rules import CubatureRule
+    return CubatureRule()
+
+
+def user_class():
+    from aligngym.estimators.rules import CubatureRule
+    return CubatureRule
+
+
+def user_raises():
+    raise RuntimeError("broken")
+
+
+def user_number():
+    return 3
+
+
+@pytest.mark.parametrize("factory, description", [
+    ("user_entry", "an entry"), ("user_rule", "user filter test_filters:user_rule"),
+    ("user_class", "user filter test_filters:user_class")])
+def test_an_imported_filter(factory, description, monkeypatch):
+    monkeypatch.syspath_prepend(str(__import__("pathlib").Path(__file__).parent))
+    spec = f"test_filters:{factory}"
+    try:
+        f = make_filter(spec)
+        assert type(f.rule).__name__ == "CubatureRule"
+        assert FILTERS[spec].description == description
+    finally:
+        FILTERS.pop(spec, None)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("no_such_module_x:f", "cannot import 'f' from 'no_such_module_x'"),
+    ("test_filters:no_such", "cannot import 'no_such' from 'test_filters'"),
+    ("test_filters:user_raises", "user_raises() raised RuntimeError: broken"),
+    ("test_filters:user_number", "must return a FilterEntry, an IntegrationRule or its "
+                                 "class, not int")])
+def test_an_imported_filter_that_fails_is_one_line(spec, message, monkeypatch):
+    monkeypatch.syspath_prepend(str(__import__("pathlib").Path(__file__).parent))
+    with pytest.raises(UnknownFilter) as info:
+        make_filter(spec)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert spec not in FILTERS
