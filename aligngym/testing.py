@@ -19,7 +19,8 @@ def assert_alignment(filter: str, scenario: str, episodes: int = 5, seed: int = 
     settings override its defaults, e.g. fine_duration) with one filter (a catalogue
     name, a registered one, or module.path:factory) and check the RMS over the episodes
     of the final misalignment: heading (U) against heading_rms_arcmin, each level axis
-    (E, N) against level_rms_arcmin. A diverged episode fails the bound.
+    (E, N) against level_rms_arcmin. An episode whose status (docs/estimators.md,
+    "Episode status") is diverged or lost fails the check, whatever the bounds.
 
     start: the fine alignment's starting error, one of the experiment's start names
     (``Experiment.starts``: paper 000 "coarse" / "large", paper 003 "mean" / "max", ...);
@@ -28,14 +29,18 @@ def assert_alignment(filter: str, scenario: str, episodes: int = 5, seed: int = 
     one-line ValueError naming the valid ones.
 
     Returns the measured {"start", "heading_rms_arcmin", "level_rms_arcmin": [E, N],
-    "diverged"} (arcmin, episodes), or with start="all" {start name: that dict} in the
-    experiment's order; raises AlignmentBoundExceeded with a per-episode table of every
+    "converged", "not_converged", "diverged", "lost"} (arcmin; episodes per status), or
+    with start="all" {start name: that dict} in the experiment's order; raises AlignmentBoundExceeded with a per-episode table of every
     start that exceeds a bound."""
     from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.config import SettingError
     from aligngym.scenarios.experiments import experiment_for
 
     _check_arguments(filter, scenario, episodes, seed, heading_rms_arcmin, level_rms_arcmin)
-    exp = experiment_for(scenario, **settings)
+    try:                      # settings checked where the experiment is made (one line)
+        exp = experiment_for(scenario, **settings)
+    except SettingError as exc:
+        raise exc.as_written(lambda name: f"assert_alignment: {name}") from None
     chosen = _chosen_starts(exp, start)
     if "starts" in {f.name for f in fields(exp)} and "starts" not in settings:
         exp = replace(exp, starts=chosen).holding(exp.scenario_file())  # those alone
@@ -71,27 +76,30 @@ def _check_run(run, filter: str, scenario: str, start: str, episodes: int, seed:
                seeds: list[int], heading: float | None, level: float | None
                ) -> tuple[dict, str]:
     """The measured dict of one start's run and its failure table ("" when within)."""
+    from aligngym.estimators.metrics import FAILED, STATUSES
     from aligngym.models.units import arcmin
     final = run.error_n[:, -1] / arcmin                       # (B, 3) E, N, U arcmin
     rms = np.sqrt(np.mean(final ** 2, axis=0))
-    diverged = int(run.diverged.sum())
+    counts = {s.replace(" ", "_"): int(np.sum(run.status == s)) for s in STATUSES}
     measured = {"start": start, "heading_rms_arcmin": float(rms[2]),
-                "level_rms_arcmin": [float(rms[0]), float(rms[1])], "diverged": diverged}
+                "level_rms_arcmin": [float(rms[0]), float(rms[1])], **counts}
     failures = []
     if heading is not None and not rms[2] <= heading:
         failures.append(f"heading RMS {rms[2]:.3f}' > {heading:g}'")
     if level is not None and not np.all(rms[:2] <= level):
         failures.append(f"level RMS E/N {rms[0]:.3f}'/{rms[1]:.3f}' > {level:g}'")
-    if diverged:
-        failures.append(f"{diverged} of {episodes} episodes diverged")
+    for status in FAILED:
+        if counts[status]:
+            failures.append(f"{counts[status]} of {episodes} episodes {status}")
     if not failures:
         return measured, ""
     lines = [f"{filter} on {scenario} from the {start} start ({episodes} episodes, seed "
              f"{seed}): " + "; ".join(failures),
-             f"{'episode seed':>14s} {'E':>11s} {'N':>11s} {'U':>12s}  final error, arcmin"]
-    for s, err, bad, why in zip(seeds, final, run.diverged, run.reason):
-        lines.append(f"{s:14d} {err[0]:11.3f} {err[1]:11.3f} {err[2]:12.3f}"
-                     + (f"  diverged: {why}" if bad else ""))
+             f"{'episode seed':>14s} {'E':>11s} {'N':>11s} {'U':>12s}  final error, arcmin;"
+             " status"]
+    for s, err, status, why in zip(seeds, final, run.status, run.reason):
+        lines.append(f"{s:14d} {err[0]:11.3f} {err[1]:11.3f} {err[2]:12.3f}  {status}"
+                     + (f": {why}" if why else ""))
     lines.append(f"{'RMS':>14s} {rms[0]:11.3f} {rms[1]:11.3f} {rms[2]:12.3f}")
     return measured, "\n".join(lines)
 

@@ -111,6 +111,65 @@ EQUIVALENT.update({
 })
 
 
+_F = "estimators/filters.py:"
+_BOOL_MUL = "numpy multiplies boolean arrays as a logical and"
+_SQ = "P, R, S and I - KH are (B, n, n) batches of square matrices: every one of their last "\
+      "two axes has length n"
+_AX = "x, x_new and valid are (B, n) arrays: axis 1 is axis -1"
+_DEAD = ("the value given to an episode already diverged, whose x and P the update no "
+         "longer changes (only finite values matter)")
+_MISSING = ("the measurement's missing components: _innovation zeroes them (np.where(valid, "
+            "z - z_hat, 0)), whatever z holds there")
+_UNSOLVED = ("the gain of an episode whose S is singular, which is flagged in the line above "
+             "and then left out of the update of x and P")
+EQUIVALENT.update({
+    **{_F + key: _BOOL_MUL for key in (
+        "43: for b in np.flatnonzero(mask * ~self.diverged):",
+        "129: finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) * np.all(np.isfinite(self.x), -1)",
+        "133: valid = observation.valid() * live[:, None]",
+        "152: valid = valid * ~adjustment.rejected",
+        "169: cross_valid = valid[:, :, None] * valid[:, None, :]",
+        "204: P_ok = positive_definite(P_new) * np.all(np.isfinite(x_new), axis=-1)",
+        "221: bad = ~ok * live",
+        '225: self.health.flag(bad * ~finite, t, "predicted covariance NaN/inf")',
+        "226: fix = bad * finite",
+        "231: still = ~positive_definite(repaired) * fix")},
+    **{_F + f"{line}: {text.format(i)}": _SQ for i in ("+1", "~1", "1", "- 2")
+       for line, text in (
+        (119, "np.where(live[:, None, None], P, np.eye(P.shape[{}])))"),
+        (170, "eye = np.broadcast_to(np.eye(R.shape[{}]), R.shape)"),
+        (187, "S_safe = np.where(live[:, None, None], S, np.eye(S.shape[{}]))"),
+        (199, "I_KH[..., np.arange(I_KH.shape[{}]), np.arange(I_KH.shape[-1])] += 1.0"),
+        (199, "I_KH[..., np.arange(I_KH.shape[-1]), np.arange(I_KH.shape[{}])] += 1.0"))},
+    **{_F + f"{line}: {text.format(i)}": _AX for i in ("+1", "1") for line, text in (
+        (129, "finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) & np.all(np.isfinite("
+              "self.x), {})"),
+        (150, "silent = ~valid.any({})[:, None, None]  # no measurement: no adaptation either"),
+        (204, "P_ok = positive_definite(P_new) & np.all(np.isfinite(x_new), axis={})"))},
+    **{_F + f"118: return (np.where(live[:, None], x, {v}),": _DEAD for v in ("1.0", "-1.0")},
+    **{_F + f"134: z = np.where(valid, observation.z, {v})": _MISSING for v in ("1.0", "-1.0")},
+    **{_F + f"192: S_inv_HP = np.where(solved[:, None, None], S_inv_HP, {v})": _UNSOLVED
+       for v in ("1.0", "-1.0")},
+    _F + "169: cross_valid = valid[:, :, None] ** valid[:, None, :]":
+        "keeps R's (valid, missing) block and zeroes its (missing, valid) one: S is then "
+        "block triangular, S^-1 HP has the same valid rows (HP's missing rows are zero) "
+        "and zero missing ones, so the gain and the update are unchanged",
+    _F + "231: still = ~positive_definite(repaired) ** fix":
+        "~(a ** b) is the integer -1 exactly where a is False and b True, -2 elsewhere; "
+        "FilterHealth.flag ands it with a boolean array (-1 & 1 = 1, -2 & 1 = 0): the "
+        "original mask",
+    _F + "142: H = np.swapaxes(np.linalg.pinv(P_pred, hermitian=False) @ P_xz, -1, -2)":
+        "P_pred is symmetric (symmetric() above): the SVD and the eigendecomposition give "
+        "the same pseudo-inverse to rounding (1e-16 relative)",
+    _F + "237: @dataclass(frozen=False)": "no code assigns to a FilterEntry's fields; frozen "
+                                         "only refuses an assignment",
+    **{_F + f"72: self.factors = np.zeros({shape})": "the factors before reset(), which "
+       "sets them (batch, n_factors) before any update reads them"
+       for shape in ("( 1, 0)", "(0, 1)")},
+    _F + "350: return str(self.args[ -1])": "UnknownFilter is raised with one argument: "
+                                            "args[-1] is args[0]",
+})
+
 def function_lines(module: Path, names: tuple[str, ...]) -> list[str]:
     """Line ranges "a-b" of the module's functions and methods with the given names."""
     tree = ast.parse(module.read_text())

@@ -7,6 +7,7 @@ import numpy as np
 
 from aligngym.models.attitude import dcm_to_euler, dcm_to_rotvec
 from aligngym.models.earth import OMEGA_IE, normal_gravity
+from aligngym.models.units import arcmin as ARCMIN
 
 
 def misalignment(C_true: np.ndarray, C_est: np.ndarray) -> np.ndarray:
@@ -37,31 +38,74 @@ def nees(error: np.ndarray, P: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", error, np.linalg.solve(P, error[..., None])[..., 0])
 
 
+STATUSES = ("converged", "not converged", "diverged", "lost")
+"""An episode's alignment status, from the best to the worst (``StatusRule``)."""
+FAILED = ("diverged", "lost")
+"""The statuses that fail a run (``aligngym.testing.assert_alignment``, the claims)."""
+
+
 @dataclass(frozen=True)
-class DivergenceRule:
-    """An episode is diverged if the filter flagged numerical trouble; or its final
-    attitude error exceeds ``ratio`` times its own 3-sigma bound on an axis and also
-    ``floor`` rad (a filter lost while confident); or its final attitude sigma exceeds
-    ``sigma_bound`` rad on an axis (a filter lost and knowing it: past pi its Gaussian
-    belief says nothing about an angle, and the first test can no longer fire; a NaN
-    sigma counts); or its final error is not finite (NaN is never inside a bound)."""
+class StatusRule:
+    """One status per episode from its final attitude error (E, N, U, rad; less the
+    experiment's unmodelled floor where it has one) and the filter's own 1-sigma of it
+    (docs/estimators.md, "Episode status"). In this order, the first that holds:
+
+    - ``diverged``: the filter flagged numerical trouble (its reason kept), or its final
+      error or sigma is not finite (NaN is never inside a bound);
+    - ``lost``: |error| > ``lost_bound`` rad (10 deg) on an axis, whatever the sigma;
+    - ``diverged``: |error| > ``ratio`` x 3 sigma and > ``floor`` rad (1') on an axis: the
+      filter is wrong and confident;
+    - ``not converged``: |error| > the experiment's convergence band on an axis, or the
+      sigma > ``sigma_bound`` rad (pi: a Gaussian belief of an angle that says nothing):
+      the error is large, but within 5 x the filter's own 3 sigma (not confidently
+      wrong);
+    - ``converged``: otherwise."""
 
     ratio: float = 5.0
-    floor: float = 2.9088820866572157e-4  # 1 arcmin
+    floor: float = 2.9088820866572157e-4      # 1 arcmin
+    lost_bound: float = 0.17453292519943295    # 10 deg
     sigma_bound: float = np.pi
 
-    def apply(self, final_error: np.ndarray, final_sigma: np.ndarray,
+    def apply(self, final_error: np.ndarray, final_sigma: np.ndarray, band: float,
               flagged: np.ndarray, reasons: list[str]) -> tuple[np.ndarray, list[str]]:
-        lost = np.any((np.abs(final_error) > self.ratio * 3.0 * final_sigma)
-                      & (np.abs(final_error) > self.floor), axis=-1)
-        blown = np.any(~(final_sigma <= self.sigma_bound), axis=-1)   # NaN counts
-        broken = np.any(~np.isfinite(final_error), axis=-1)          # never "inside"
-        out = [r if f else ("final error not finite" if n else
-                            f"final error > {self.ratio:g} x 3 sigma" if l else
-                            f"attitude sigma > {np.degrees(self.sigma_bound):g} deg"
-                            if b else "")
-               for f, n, l, b, r in zip(flagged, broken, lost, blown, reasons)]
-        return flagged | broken | lost | blown, out
+        """Statuses (B,) (strings of ``STATUSES``) and their reasons ("" if converged)
+        of final_error, final_sigma (B, 3) rad, with the convergence band (rad, every
+        axis), the filter's flags (B,) and their reasons."""
+        error = np.abs(final_error)
+        broken = ~np.all(np.isfinite(error), axis=-1) | ~np.all(np.isfinite(final_sigma),
+                                                                 axis=-1)
+        lost = np.any(error > self.lost_bound, axis=-1)
+        wrong = np.any((error > self.ratio * 3.0 * final_sigma) & (error > self.floor),
+                       axis=-1)
+        wide = np.any(final_sigma > self.sigma_bound, axis=-1)
+        outside = np.any(error > band, axis=-1)
+        status, out = [], []
+        for b, flag_reason in enumerate(reasons):
+            if flagged[b] or broken[b]:
+                status.append("diverged")
+                out.append(flag_reason if flagged[b] else "final error or sigma not finite")
+            elif lost[b]:
+                status.append("lost")
+                out.append(f"final error > {np.degrees(self.lost_bound):g} deg")
+            elif wrong[b]:
+                status.append("diverged")
+                out.append(f"final error > {self.ratio:g} x 3 sigma")
+            elif wide[b] or outside[b]:
+                status.append("not converged")
+                out.append(f"attitude sigma > {np.degrees(self.sigma_bound):g} deg" if wide[b]
+                           else f"final error > the {band / ARCMIN:g}' band")
+            else:
+                status.append("converged")
+                out.append("")
+        return np.array(status, dtype="<U13"), out
+
+
+def status_fractions(status: np.ndarray) -> dict[str, float]:
+    """{"converged_fraction", "not_converged_fraction", "diverged_fraction",
+    "lost_fraction"}: the fraction of the episodes (status (B,)) in each status."""
+    status = np.asarray(status)
+    return {f"{s.replace(' ', '_')}_fraction": float(np.mean(status == s)) if status.size
+            else 0.0 for s in STATUSES}
 
 
 def static_alignment_floor(C_to_n: np.ndarray, gyro_bias: np.ndarray,

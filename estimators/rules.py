@@ -126,19 +126,27 @@ class SigmaPointRule(IntegrationRule):
         S = _sqrt_psd(cov)
         chi = mean[:, None, :] + xi @ np.swapaxes(S, -1, -2)
         centre = int(np.argmin(np.einsum("ki,ki->k", xi, xi)))
+        reference = None
+        if fmap.angles and np.any(xi[centre]):      # no point at the mean: map the mean
+            reference = fmap(mean[:, None, :])[:, 0]
         return weighted_moments(fmap(chi), chi - mean[:, None, :], wm, wc, fmap.angles,
-                                centre)
+                                centre, reference)
 
 
 def weighted_moments(y: np.ndarray, dx: np.ndarray, wm: np.ndarray, wc: np.ndarray,
-                     angles: tuple[int, ...] = (), centre: int = 0) -> Moments:
+                     angles: tuple[int, ...] = (), centre: int = 0,
+                     reference: np.ndarray | None = None) -> Moments:
     """Mean (B, d), covariance (B, d, d) and cross-covariance with x (B, n, d) from mapped
     points y (B, P, d), point offsets dx = chi - mean (B, P, n) and mean/covariance
-    weights (P,). Angle components of y are averaged around the value at the point
-    ``centre`` (the one nearest the mean) and their residuals wrapped."""
+    weights (P,). Angle components of y are averaged around a reference and their
+    residuals wrapped: the image of the mean, ``reference`` (B, d), for a rule without a
+    point at the mean, else the value at the point ``centre`` (the one at the mean). A
+    reference at an outer point would wrap the opposite points by 2 pi once the spread
+    of an angle passes +-90 deg (the cubature rule from paper 002's large starts)."""
     if angles:
         idx = list(angles)
-        ref = y[:, centre:centre + 1, idx]
+        ref = (y[:, centre:centre + 1, idx] if reference is None
+               else reference[:, None, idx])
         y = y.copy()
         y[..., idx] = ref + wrap_angle(y[..., idx] - ref)
     mean = (wm @ y)                                    # (B, d)
@@ -326,7 +334,12 @@ class ReducedGaussHermiteRule(IntegrationRule):
         F, g = fmap.conditional(theta[..., zeta])               # (B, P, d, n), (B, P, d)
         y = np.einsum("bkij,bkj->bki", F, theta) + g
         centre = int(np.argmin(np.einsum("kl,kl->k", xi, xi)))
-        y_mean, cov_y, cross = weighted_moments(y, offsets, W, W, fmap.angles, centre)
+        reference = None
+        if fmap.angles and np.any(xi[centre]):      # no point at the mean: map the mean
+            F0, g0 = fmap.conditional(mean[:, None, zeta])
+            reference = np.einsum("bij,bj->bi", F0[:, 0], mean) + g0[:, 0]
+        y_mean, cov_y, cross = weighted_moments(y, offsets, W, W, fmap.angles, centre,
+                                                reference)
         F_Sigma = F @ Sigma_c[:, None]                          # (B, P, d, n)
         cov_y = cov_y + np.einsum("k,bkij,bklj->bil", W, F_Sigma, F)
         cross = cross + np.einsum("k,bkij->bji", W, F_Sigma)

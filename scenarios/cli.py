@@ -97,9 +97,8 @@ def _add_setting_options(bench: argparse.ArgumentParser, experiment: type) -> No
         kwargs: dict = {"dest": f.name, "default": None}
         if meta["choices"]:
             kwargs["choices"] = list(meta["choices"]) + (["all"] if meta["sweep"] else [])
-        elif isinstance(f.default, (int, float)):
-            kwargs["type"] = _number_option(flag, meta["minimum"])
-            kwargs["metavar"] = meta["unit"].upper() or "X"
+        else:      # read as --set reads its VALUE; checked with the experiment's settings
+            kwargs["metavar"] = meta["unit"].upper() or "VALUE"
         default = f.default if f.default not in ("", None) else "none"
         tail = (", or all in turn" if meta["sweep"] else "") + f"; default: {default}"
         group.add_argument(flag, help=meta["doc"] + (f", {meta['unit']}" if meta["unit"] else "")
@@ -286,32 +285,44 @@ def _positive_int(field: str, minimum: int = 1):
     return parse
 
 
-def _settings_of(cls: type, args: argparse.Namespace) -> dict:
-    """The experiment settings bench's options and --set NAME=VALUE give, each checked to be
-    a setting (a dataclass field) of the experiment class; VALUE is read as a TOML value
-    (number, true/false, "string", [list]), else as a plain string; "none" is None."""
+def _setting_value(text: str):
+    """A setting's value as written on the command line: a TOML value (number,
+    true/false, "string", [list] -> tuple), else the plain string; "none" is None."""
     import tomllib
 
+    if text.strip().lower() == "none":
+        return None
+    try:
+        value = tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text
+    return tuple(value) if isinstance(value, list) else value
+
+
+def _settings_of(cls: type, args: argparse.Namespace) -> dict:
+    """The experiment settings bench's options and --set NAME=VALUE give, each checked to be
+    a setting (a dataclass field) of the experiment class; values read by
+    ``_setting_value`` (their types and ranges are checked when the experiment is made,
+    ``campaign.experiment.validate_settings``). Records in args.setting_labels how each was
+    written (--NAME, --set NAME), for the error that names it."""
     from aligngym.scenarios.config import ConfigError
     known = {f.name: f for f in fields(cls)}
-    out = {f.name: getattr(args, f.name) for f in cls.flagged_settings()
-           if getattr(args, f.name, None) is not None}
+    labels = getattr(args, "setting_labels", {})
+    out = {}
+    for f in cls.flagged_settings():
+        given = getattr(args, f.name, None)
+        if given is not None:
+            out[f.name] = given if f.metadata["choices"] else _setting_value(given)
+            labels[f.name] = "--" + f.name.replace("_", "-")
     for item in args.set or ():
         name, sep, text = item.partition("=")
         name = name.strip().replace("-", "_")
         if not sep or name not in known:
             raise ConfigError(f"--set {item!r}: need NAME=VALUE with NAME a setting of "
                               f"{args.paper}: " + ", ".join(sorted(known)))
-        if text.strip().lower() == "none":
-            value = None
-        else:
-            try:
-                value = tomllib.loads(f"v = {text}")["v"]
-            except tomllib.TOMLDecodeError:
-                value = text
-        if isinstance(value, list):
-            value = tuple(value)
-        out[name] = value
+        out[name] = _setting_value(text)
+        labels[name] = f"--set {name}"
+    args.setting_labels = labels
     return out
 
 
@@ -343,8 +354,6 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     if args.resume and not args.out:
         raise ConfigError("--resume needs --out DIR (where the finished episodes are)")
-    if args.json:
-        _check_writable(args.json, "--json")
     cls = experiment_class(args.paper)
     settings = {} if args.scenario is None else {"scenario": args.scenario}
     settings.update(_settings_of(cls, args))
@@ -352,7 +361,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                   if f.metadata["sweep"] and settings.get(f.name) == "all"), None)
     levels = [None] if sweep is None else list(sweep.metadata["choices"])  # one campaign each
     episodes = args.episodes or cls.default_episodes
-    summaries, elapsed = [], 0.0
+    experiments = []        # every campaign's settings checked before anything is written
     for level in levels:
         exp = experiment(args.paper, args.setup,
                          **(settings if level is None else {**settings, sweep.name: level}))
@@ -360,6 +369,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                    else [f.strip() for f in args.filters.split(",") if f.strip()])
         if not filters:
             raise ConfigError("--filters is empty; give at least one filter name")
+        exp.check(exp.scenario_config())
+        exp.check_filters(filters)
+        experiments.append((level, exp, filters))
+    if args.json:
+        _check_writable(args.json, "--json")
+    summaries, elapsed = [], 0.0
+    for level, exp, filters in experiments:
         out = args.out if level is None or args.out is None else str(Path(args.out) / level)
         start = time.perf_counter()
         with _holding(out):            # the campaign and its outputs: one writer
@@ -412,13 +428,22 @@ def _interrupted(args: argparse.Namespace) -> str:
             f"continue with: {' '.join(again)}")
 
 
+def _option_labels(args: argparse.Namespace) -> dict[str, str]:
+    """The scenario fields --duration and --imu-rate override, by option (errors name
+    what the user wrote)."""
+    return {field: option for field, option in (("duration", "--duration"),
+                                                 ("imu_rate", "--imu-rate"))
+            if getattr(args, field) is not None}
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from aligngym.models.attitude import quat_to_euler
     from aligngym.models.units import deg
     from aligngym.scenarios.config import load_scenario
     from aligngym.scenarios.simulate import simulate
 
-    config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate)
+    config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate,
+                                                       labels=_option_labels(args))
     start = time.perf_counter()
     episode = simulate(config, seed=args.seed, ideal=args.ideal)
     path = episode.save(args.out)
@@ -439,7 +464,8 @@ def _cmd_fidelity(args: argparse.Namespace) -> int:
     from aligngym.scenarios.config import load_scenario
     from aligngym.scenarios.fidelity import fidelity_errors
 
-    config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate)
+    config = load_scenario(args.scenario).with_options(args.duration, args.imu_rate,
+                                                       labels=_option_labels(args))
     err = fidelity_errors(config, seed=args.seed)
     print(f"{config.name}: strapdown vs truth over {config.duration:g} s at "
           f"{config.imu_rate:g} Hz, ideal sensors")
@@ -528,6 +554,7 @@ def _cmd_bank(args: argparse.Namespace) -> int:
 
     config = load_scenario(args.scenario)
     args.paper = config.experiment or "the scenario's experiment"
+    args.setting_labels = {"fine_duration": "--episode-length", "filter_step": "--epoch-length"}
     settings = _settings_of(experiment_class(config.experiment), args) if (
         config.experiment and args.set) else {}
     seeds = split_seeds(args.split, args.episodes, args.first)
@@ -580,7 +607,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:      # a usage error: the usage, and status 2
         parser.print_help()
         return 2
-    from aligngym.scenarios.config import ConfigError
+    from aligngym.scenarios.config import ConfigError, SettingError
     from aligngym.scenarios.interrupts import remember_interrupts
 
     commands = {"simulate": _cmd_simulate, "bench": _cmd_bench, "regress": _cmd_regress,
@@ -590,6 +617,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with remember_interrupts():
             return commands[args.command](args)
     except ConfigError as exc:
+        if isinstance(exc, SettingError):    # a setting: named as the user wrote it
+            labels = getattr(args, "setting_labels", {})
+            exc = exc.as_written(lambda name: labels.get(name, name))
         print(f"aligngym: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

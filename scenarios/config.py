@@ -165,6 +165,28 @@ def _checked(value: Any) -> Any:
     return value if isinstance(value, int) and not isinstance(value, bool) else _number(value)
 
 
+def _key(section: str, name: str) -> str:
+    """A parameter's key as a scenario file writes it, unit suffix included
+    (``run.duration_s``): what its errors name."""
+    return f"{section}.{name}{UNITS.get(name, '')}"
+
+
+class SettingError(ConfigError):
+    """An experiment setting's value refused before any work: ``name`` (the setting, a
+    field of the experiment), ``value`` and ``detail`` ("must be ..., got ..."; "{other}"
+    in it stands for the setting ``other`` it was compared with). str() names the
+    settings by their fields; ``as_written(label)`` is the same one line naming them as
+    the user wrote them (label: field name -> "--set NAME", "--NAME", "NAME=", ...)."""
+
+    def __init__(self, name: str, value: Any, detail: str, other: str = "") -> None:
+        self.name, self.value, self.detail, self.other = name, value, detail, other
+        super().__init__(f"{name} {detail.replace('{other}', other)}")
+
+    def as_written(self, label) -> ConfigError:
+        return ConfigError(f"{label(self.name)} "
+                           + self.detail.replace("{other}", label(self.other)))
+
+
 def _check_range(field: str, value: float, low: float, high: float, unit: str,
                  low_open: bool = False) -> None:
     ok = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
@@ -206,16 +228,17 @@ class ScenarioConfig:
     source: str = field(default="", compare=False)
     """The file it was read from."""
 
-    def with_options(self, duration: float | None = None, imu_rate: float | None = None
-                     ) -> "ScenarioConfig":
-        """Copy with command-line overrides, validated."""
+    def with_options(self, duration: float | None = None, imu_rate: float | None = None,
+                     labels: dict[str, str] | None = None) -> "ScenarioConfig":
+        """Copy with command-line overrides, validated; labels: the name an error gives
+        an overridden field ({"duration": "--duration"}; default: its file key)."""
         values = {f.name: getattr(self, f.name) for f in fields(self)}
         if duration is not None:
             values["duration"] = float(duration)
         if imu_rate is not None:
             values["imu_rate"] = float(imu_rate)
         config = ScenarioConfig(**values)
-        config.validate()
+        config.validate(labels)
         return config
 
     @property
@@ -228,14 +251,19 @@ class ScenarioConfig:
         """Number of IMU intervals in the run."""
         return int(round(self.duration * self.imu_rate))
 
-    def validate(self) -> None:
-        _check_range("origin.latitude", self.latitude / deg, -89.0, 89.0, "deg")
-        _check_range("origin.longitude", self.longitude / deg, -180.0, 360.0, "deg")
-        _check_range("origin.height", self.height, -500.0, 10000.0, "m")
-        _check_range("run.duration", self.duration, 0.0, 86400.0, "s", low_open=True)
-        _check_range("run.imu_rate", self.imu_rate, 0.0, 2000.0, "Hz", low_open=True)
+    def validate(self, labels: dict[str, str] | None = None) -> None:
+        """One-line ConfigError naming the first bad value by its key as the file writes
+        it (``run.duration_s``), or by labels[field] where an option set it."""
+        labels = labels or {}
+        _check_range(_key("origin", "latitude"), self.latitude / deg, -89.0, 89.0, "deg")
+        _check_range(_key("origin", "longitude"), self.longitude / deg, -180.0, 360.0, "deg")
+        _check_range(_key("origin", "height"), self.height, -500.0, 10000.0, "m")
+        duration = labels.get("duration") or _key("run", "duration")
+        rate = labels.get("imu_rate") or _key("run", "imu_rate")
+        _check_range(duration, self.duration, 0.0, 86400.0, "s", low_open=True)
+        _check_range(rate, self.imu_rate, 0.0, 2000.0, "Hz", low_open=True)
         if abs(self.duration * self.imu_rate - self.imu_samples) > 1e-6 or self.imu_samples < 2:
-            raise ConfigError(f"run.duration = {self.duration:g} s must be a whole number (>= 2)"
+            raise ConfigError(f"{duration} = {self.duration:g} s must be a whole number (>= 2)"
                               f" of IMU intervals of {self.imu_interval:g} s")
         try:
             self.faults.check(self.duration)
@@ -251,14 +279,14 @@ class ScenarioConfig:
         if self.gps is not None and self.world not in PHYSICS_RATE:
             ratio = self.imu_rate / self.gps.rate
             if abs(ratio - round(ratio)) > 1e-9:
-                raise ConfigError(f"gps.rate = {self.gps.rate:g} Hz must divide run.imu_rate "
+                raise ConfigError(f"gps.rate_hz = {self.gps.rate:g} Hz must divide {rate} "
                                   f"= {self.imu_rate:g} Hz")
         if self.world in PHYSICS_RATE:
-            rate = PHYSICS_RATE[self.world]
-            ratio = rate / self.imu_rate
+            physics = PHYSICS_RATE[self.world]
+            ratio = physics / self.imu_rate
             if abs(ratio - round(ratio)) > 1e-9:
-                raise ConfigError(f"run.imu_rate = {self.imu_rate:g} Hz must divide the "
-                                  f"{self.world} physics rate {rate:g} Hz")
+                raise ConfigError(f"{rate} = {self.imu_rate:g} Hz must divide the "
+                                  f"{self.world} physics rate {physics:g} Hz")
             try:
                 self.motion.check()
             except ValueError as exc:
@@ -266,22 +294,22 @@ class ScenarioConfig:
             return
         m = self.motion
         if self.world == "static-platform":
-            _check_range("motion.yaw", m.yaw_mean / deg, -360.0, 360.0, "deg")
-            _check_range("motion.pitch", m.pitch / deg, -10.0, 10.0, "deg")
-            _check_range("motion.roll", m.roll / deg, -10.0, 10.0, "deg")
+            _check_range(_key("motion", "yaw"), m.yaw_mean / deg, -360.0, 360.0, "deg")
+            _check_range(_key("motion", "pitch"), m.pitch / deg, -10.0, 10.0, "deg")
+            _check_range(_key("motion", "roll"), m.roll / deg, -10.0, 10.0, "deg")
             if m.has_gimbal:
                 raise ConfigError("motion: the static platform has no gimbal; "
                                   "gimbal rates must be 0 deg/s")
             return
         for name in ("yaw_period", "pitch_period", "roll_period"):
-            _check_range(f"motion.{name}", getattr(m, name), 0.0, 1e4, "s", low_open=True)
+            _check_range(_key("motion", name), getattr(m, name), 0.0, 1e4, "s", low_open=True)
         for name in ("yaw_amplitude", "pitch_amplitude", "roll_amplitude"):
-            _check_range(f"motion.{name}", getattr(m, name) / deg, 0.0, 45.0, "deg")
+            _check_range(_key("motion", name), getattr(m, name) / deg, 0.0, 45.0, "deg")
         for i, (a, p) in enumerate(zip(m.linear_amplitude, m.linear_period)):
-            _check_range(f"motion.linear_amplitude[{i}]", a, 0.0, 50.0, "m")
-            _check_range(f"motion.linear_period[{i}]", p, 0.0, 1e4, "s", low_open=True)
+            _check_range(f"{_key('motion', 'linear_amplitude')}[{i}]", a, 0.0, 50.0, "m")
+            _check_range(f"{_key('motion', 'linear_period')}[{i}]", p, 0.0, 1e4, "s", low_open=True)
         for name in ("gimbal_outer_rate", "gimbal_inner_rate"):
-            _check_range(f"motion.{name}", getattr(m, name) / deg, -360.0, 360.0, "deg/s")
+            _check_range(_key("motion", name), getattr(m, name) / deg, -360.0, 360.0, "deg/s")
 
 
 def scenario_path(name_or_path: str) -> Path:

@@ -30,6 +30,7 @@ not run, so that ending early never pays.
 """
 from __future__ import annotations
 
+import os
 from collections import OrderedDict
 from pathlib import Path
 
@@ -42,7 +43,7 @@ from aligngym.estimators.alignment import AlignmentRun
 from aligngym.estimators.metrics import misalignment
 from aligngym.models.units import arcmin
 from aligngym.scenarios.bank import SPLITS, EpisodeBank, check_seed_in_split, check_split
-from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.config import ConfigError, SettingError
 from aligngym.scenarios import campaign
 from aligngym.scenarios.campaign import PreparedEpisode
 from aligngym.scenarios.experiments import env_experiment
@@ -63,6 +64,35 @@ def _real_array(value, name: str, expected: str, error: type = ConfigError) -> n
     if array.dtype.kind not in "iuf":
         raise error(f"{name} must be {expected}, got {array.dtype} values")
     return array.astype(float)
+
+
+def _scenario_file(scenario):
+    """The scenario file (``config.load_scenario``) of a shipped name or a .toml path;
+    anything else is one line naming ``scenario`` and what it takes."""
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.registry import scenario_names
+    if isinstance(scenario, bool) or not isinstance(scenario, (str, os.PathLike)) \
+            or not str(scenario):
+        raise ConfigError(f"scenario = {scenario!r}; valid: a shipped name ("
+                          + ", ".join(scenario_names()) + ") or a .toml path")
+    return load_scenario(scenario)
+
+
+def _setup_settings(config, settings: dict | None) -> dict | None:
+    """settings, checked for a file that names no experiment but is a named setup's own
+    (a ``*-paper`` file runs its experiment's paper setup, ``experiments.setup_for``):
+    its "setup" key may only repeat that setup (dropped); another is one line."""
+    if config.experiment or not isinstance(settings, dict) or "setup" not in settings:
+        return settings
+    from aligngym.scenarios.experiments import setup_for
+    named = setup_for(config.name)
+    if named is None:              # experiment_for names the missing experiment key
+        return settings
+    if settings["setup"] != named[1]:
+        raise ConfigError(f"settings setup = {settings['setup']!r}: {config.name} is "
+                          f"{named[0]}'s {named[1]!r} setup; valid: {named[1]!r}")
+    return {k: v for k, v in settings.items() if k != "setup"}
+
 
 INNOVATIONS = slice(0, 7)
 COVARIANCE = slice(7, 16)
@@ -88,15 +118,21 @@ class EnvCore:
             filter_entry(estimator)
         except UnknownFilter as exc:
             raise ConfigError(str(exc)) from None
-        if not (episode_length > 0 and epoch_length > 0 and episode_length >= epoch_length):
-            raise ConfigError("need episode_length >= epoch_length > 0 s, got "
-                              f"{episode_length}, {epoch_length}")
         if reward not in REWARDS:
             raise ConfigError(f"reward = {reward!r}; valid: " + ", ".join(REWARDS))
         self.reward = reward
         self.estimator = estimator
-        self.experiment = env_experiment(scenario, episode_length, epoch_length, settings)
-        self.config = self.experiment.scenario_config()
+        config = _scenario_file(scenario)
+        labels = {"fine_duration": "episode_length", "filter_step": "epoch_length"}
+        try:             # the settings checked where the experiment is made, named as given
+            self.experiment = env_experiment(scenario, episode_length, epoch_length,
+                                             _setup_settings(config, settings), config=config)
+            self.config = self.experiment.scenario_config()
+        except SettingError as exc:
+            raise exc.as_written(lambda name: labels.get(name, f"settings[{name!r}]")) from None
+        if not (episode_length is not None and episode_length >= epoch_length):
+            raise ConfigError("need episode_length >= epoch_length > 0 s, got "
+                              f"{episode_length}, {epoch_length}")
         self.experiment.check_filters([estimator])
         factors = {"gyro_noise": 1.0, "accel_noise": 1.0, "measurement": 1.0,
                    **(mistuning or {})}
@@ -317,7 +353,9 @@ class Cohort:
 class AlignmentEnv(EnvCore, gym.Env):
     """Alignment of the scenario's IMU by one estimator (see the module docstring).
 
-    scenario: scenario name or .toml path; estimator: filter name
+    scenario: scenario name or .toml path (any file in ``scenarios/data/``: one that
+    names its experiment runs its default setup, a ``*-paper`` file its experiment's
+    paper setup, as ``bench EXPERIMENT --setup paper``); estimator: filter name
     (``estimators.filters.FILTERS``); episode_length: fine-alignment duration, s;
     epoch_length: filter epoch, s; render_mode: None or "rgb_array"; video_path: with
     "rgb_array", write each episode's frames to this MP4 file; mistuning: variance
@@ -455,7 +493,9 @@ def evaluate(env_id: str, estimator: str, episodes: int, seed: int = 0,
     """Run the estimator passively (zero action) on the campaign's episode seeds and return
     the per-episode metrics table (the campaign's rows for the same seeds and start);
     with split ("test", say), on that split's first episodes instead (campaign seeds
-    below 1600 are training seeds: score an agent on "test")."""
+    below 1600 are training seeds: score an agent on "test"). env_id: any aligngym id
+    (``aligngym/<Scenario>-v1`` of every shipped scenario, ``*-paper`` ones included, or
+    ``aligngym/Alignment-v1`` with scenario=NAME or a .toml path in env_kwargs)."""
     from aligngym.scenarios.bank import split_seeds
     from aligngym.scenarios.campaign import episode_seeds
 

@@ -6,15 +6,22 @@ Per starting error, four PNG files (``write_figures``):
   alignment, per filter the median over the episodes that did not diverge, their 5-95 %
   band and the filter's mean +-3 sigma; the diverged episodes as faint individual lines,
   counted in the legend; the right column zooms on the experiment's RMS window;
-- ``final_error_<start>.png``: box plots of the final error per filter and axis;
-- ``heading_convergence_<start>.png``: the fraction of episodes whose heading has
+- ``final_error_<start>.png``: box plots of the final error per filter and axis, a
+  legend for the box, whiskers, fliers and diverged episodes;
+- ``heading_convergence_<start>.png``: the percentage of episodes whose heading has
   converged, against time (empirical CDF of ``heading_convergence_s``);
 - ``nees_<start>.png``: mean and median NEES over time with their 95 % chi-square bands
-  for the experiment's NEES dimension (``Experiment.nees_dof``).
+  for the experiment's NEES dimension (``Experiment.nees_dof``); a strip in a filter's
+  colour at the top (bottom) of the mean panel marks the epochs where its mean NEES is
+  above (below) its band, and its legend entry gives the fraction of such epochs.
+
+Every axis carries its unit, every marker is in a legend, and a filter whose results
+equal another's from the same start (``identical_runs``) is marked "(= other)".
 
 The statistics are functions of the campaign result (``error_bands``, ``nees_curves``,
-``heading_convergence_cdfs``, ``mean_nees_band``, ``median_nees_band``), so they are
-checked apart from the drawing.
+``heading_convergence_cdfs``, ``mean_nees_band``, ``median_nees_band``,
+``nees_excursions``), so they are checked apart from the drawing; ``nees_band_summary``
+puts the excursions in the campaign's summary.json ("nees_band").
 """
 from __future__ import annotations
 
@@ -159,6 +166,117 @@ def median_nees_band(dof: int, episodes: int, probability: float = 0.95
 
 
 @dataclass
+class NeesExcursion:
+    """One filter's mean NEES from one start against the ``probability`` band of the
+    mean of ``episodes`` consistent episodes with ``dof`` states (``mean_nees_band``;
+    None without an episode left): t (K,) s as in its ``NeesCurve``; counted (K,) the
+    epochs with a mean NEES; above, below (K,) those where it is above or below the band."""
+
+    filter: str
+    start: str
+    band: tuple[float, float] | None
+    dof: int
+    episodes: int
+    probability: float
+    t: np.ndarray
+    counted: np.ndarray
+    above: np.ndarray
+    below: np.ndarray
+
+    def _fraction(self, mask: np.ndarray) -> float | None:
+        epochs = int(self.counted.sum())
+        return float(mask.sum() / epochs) if epochs and self.band else None
+
+    @property
+    def fraction_above(self) -> float | None:
+        """Fraction of the epochs with a mean NEES where it is above the band."""
+        return self._fraction(self.above)
+
+    @property
+    def fraction_below(self) -> float | None:
+        return self._fraction(self.below)
+
+    @property
+    def first_time_outside(self) -> float | None:
+        """s since the start of fine alignment of the first epoch outside the band."""
+        outside = np.flatnonzero(self.above | self.below)
+        return float(self.t[outside[0]]) if outside.size else None
+
+    def spans(self, mask: np.ndarray) -> list[tuple[float, float]]:
+        """The runs of consecutive epochs of mask as (t start, width) s, each epoch
+        covering the time half-way to its neighbours (``broken_barh``'s spans)."""
+        if not mask.any():
+            return []
+        t = self.t
+        edges = np.concatenate([t[:1], 0.5 * (t[1:] + t[:-1]), t[-1:]])
+        step = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+        first, last = np.flatnonzero(step == 1), np.flatnonzero(step == -1)
+        return [(float(edges[a]), float(edges[b] - edges[a])) for a, b in zip(first, last)]
+
+    def sentence(self) -> str:
+        """In words: e.g. "mean NEES of 6 episodes (9 states) against its 95 % chi-square
+        band [5.93, 12.7]: above in 34 % of the epochs, below in 0 %, first outside at
+        191 s"."""
+        if not self.band or not self.counted.any():
+            return "no mean NEES (no episode left)"
+        head = (f"mean NEES of {self.episodes} episodes ({self.dof} states) against its "
+                f"{100.0 * self.probability:g} % chi-square band [{self.band[0]:.3g}, "
+                f"{self.band[1]:.3g}]: ")
+        if self.first_time_outside is None:
+            return head + "inside at every epoch"
+        return (head + f"above in {as_percent(self.fraction_above)} of the epochs, below in "
+                f"{as_percent(self.fraction_below)}, first outside at "
+                f"{self.first_time_outside:.4g} s")
+
+    def summary(self) -> dict:
+        """The JSON form (summary.json's "nees_band")."""
+        return {"band": list(self.band) if self.band else None, "dof": self.dof,
+                "episodes": self.episodes, "probability": self.probability,
+                "epochs": int(self.counted.sum()),
+                "fraction_of_epochs_above": self.fraction_above,
+                "fraction_of_epochs_below": self.fraction_below,
+                "first_time_outside_s": self.first_time_outside, "text": self.sentence()}
+
+
+def as_percent(fraction: float) -> str:
+    """A fraction as a whole percentage; "<1 %" and ">99 %" short of 0 and 1."""
+    if 0.0 < fraction < 0.005:
+        return "<1 %"
+    return ">99 %" if 0.995 <= fraction < 1.0 else f"{100.0 * fraction:.0f} %"
+
+
+def nees_excursions(curves: list[NeesCurve], dof: int, probability: float = 0.95
+                    ) -> list[NeesExcursion]:
+    """Per curve its ``NeesExcursion``: the epochs where the mean NEES over its episodes
+    (those not diverged) is outside the ``probability`` band of a mean of that many
+    consistent episodes (``mean_nees_band``)."""
+    out = []
+    for curve in curves:
+        counted = np.isfinite(curve.mean)
+        band = (mean_nees_band(dof, curve.episodes, probability)
+                if dof and curve.episodes else None)
+        if band:
+            with np.errstate(invalid="ignore"):
+                above, below = counted & (curve.mean > band[1]), counted & (curve.mean < band[0])
+        else:
+            above = below = np.zeros_like(counted)
+        out.append(NeesExcursion(curve.filter, curve.start, band, dof, curve.episodes,
+                                 probability, curve.t, counted, above, below))
+    return out
+
+
+def nees_band_summary(result, probability: float = 0.95) -> dict:
+    """summary.json's "nees_band": {filter: {start: ``NeesExcursion.summary()``}}; empty
+    for an experiment without a NEES (``nees_dof`` 0)."""
+    dof = result.experiment.nees_dof()
+    out: dict[str, dict[str, dict]] = {}
+    if dof:
+        for excursion in nees_excursions(nees_curves(result), dof, probability):
+            out.setdefault(excursion.filter, {})[excursion.start] = excursion.summary()
+    return out
+
+
+@dataclass
 class ConvergenceCdf:
     """One filter's heading convergence from one start: times (C,) s, sorted, of the C
     episodes that converged (heading error within the threshold from then to the end,
@@ -192,15 +310,29 @@ def heading_convergence_cdfs(result) -> list[ConvergenceCdf]:
     return cdfs
 
 
+def _same_results(a, b) -> bool:
+    """Whether two runs drew the same figures: attitude errors, the filter's sigma, NEES
+    and divergence flags equal element for element (NaN equal to NaN: a run lost midway
+    is NaN from then on). The fading factors themselves may differ (a factor held at 1)."""
+    pairs = ((a.error_n, b.error_n), (a.result.sigma_n, b.result.sigma_n),
+             (a.nees, b.nees), (a.diverged, b.diverged))
+    for x, y in pairs:
+        x, y = np.asarray(x), np.asarray(y)
+        if not np.array_equal(x, y, equal_nan=x.dtype.kind in "fc" and y.dtype.kind in "fc"):
+            return False
+    return True
+
+
 def identical_runs(result) -> dict[tuple[str, str], str]:
-    """Runs whose attitude errors equal an earlier run's from the same start, bit for bit
-    (a fading-factor filter whose factors never left 1 is its KF): (filter, start) -> the
-    earlier filter. Their curves coincide; the legends say so."""
+    """Runs whose results equal an earlier run's from the same start, bit for bit
+    (``_same_results``; a fading-factor filter whose factors never left 1 is its KF;
+    makf-r and imakf-r are one filter): (filter, start) -> the first filter of its group.
+    Their curves coincide; the legends and the box plot's labels say so."""
     twins: dict[tuple[str, str], str] = {}
     for i, run in enumerate(result.runs):
         for earlier in result.runs[:i]:
             if (earlier.start == run.start and (earlier.filter, earlier.start) not in twins
-                    and np.array_equal(earlier.error_n, run.error_n)):
+                    and earlier.filter != run.filter and _same_results(earlier, run)):
                 twins[(run.filter, run.start)] = earlier.filter
                 break
     return twins
@@ -290,6 +422,7 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
         full.set_xlim(0.0, t_end)
         tail.set_xlim(tail_start, t_end)
         full.set_ylabel(f"{AXIS_NAMES[axis]} error (arcmin)")
+        tail.set_ylabel(f"{AXIS_NAMES[axis]} error (arcmin)")
     axes[0, 0].set_title("whole fine alignment")
     axes[0, 1].set_title(f"last {t_end - tail_start:g} s"
                          + (" (the RMS window)" if window < t_end else ""))
@@ -307,21 +440,27 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
                frameon=False, bbox_to_anchor=(0.5, 0.97))
     fig.suptitle(title + " (line: median)")
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.06, top=0.87, hspace=0.1,
-                        wspace=0.13)   # fixed: tight_layout would double the cost
+                        wspace=0.16)   # fixed: tight_layout would double the cost
     save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path
 
 
-def plot_final_errors(result, start: str, path: Path) -> Path:
+FLIER = {"marker": "o", "markersize": 3, "markerfacecolor": "none",
+         "markeredgecolor": "k", "linestyle": "none"}
+"""The box plot's fliers: an episode beyond the 5-95 % whiskers."""
+
+
+def plot_final_errors(result, start: str, path: Path, twins: dict | None = None) -> Path:
     """final_error_<start>.png: per axis, a box per filter of the final error (arcmin) of
-    the episodes not diverged (box: quartiles, line: median, whiskers: 5-95 %, dots
-    beyond); the diverged ones as black x, clamped to the panel (triangles) when off
-    it."""
+    the episodes not diverged (box: quartiles, line: median, whiskers: 5-95 %, open
+    circles beyond); the diverged ones as black x, clamped to the panel (triangles) when
+    off it. A legend explains each marker drawn."""
     plt = pyplot()
     runs = [r for r in result.runs if r.start == start]
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.8))
     positions = np.arange(1, len(runs) + 1)
+    drawn = {"flier": False, "x": False, "off": False}
     for axis, ax in enumerate(axes):
         kept, values = [], []
         for i, run in enumerate(runs):
@@ -330,7 +469,8 @@ def plot_final_errors(result, start: str, path: Path) -> Path:
             kept.append(final[ok] if ok.any() else np.array([np.nan]))
             values.append(final[ok])
         boxes = ax.boxplot(kept, positions=positions, whis=(5, 95), widths=0.6,
-                           patch_artist=True, flierprops={"markersize": 3})
+                           patch_artist=True, flierprops=FLIER)
+        drawn["flier"] |= any(len(f.get_ydata()) for f in boxes["fliers"])
         for i, patch in enumerate(boxes["boxes"]):
             patch.set(facecolor=line_style(i)["color"], alpha=0.45)
         for median in boxes["medians"]:
@@ -341,20 +481,38 @@ def plot_final_errors(result, start: str, path: Path) -> Path:
             bad = run.error_n[np.asarray(run.diverged, bool), -1, axis] / arcmin
             inside = np.abs(bad) <= limit
             ax.plot(np.full(inside.sum(), positions[i]), bad[inside], "kx", markersize=7)
+            drawn["x"] |= bool(inside.any())
+            drawn["off"] |= bool((~inside).any())
             for value in bad[~inside]:
                 ax.plot(positions[i], np.sign(value) * limit * 0.97,
                         "k^" if value > 0 else "kv", markersize=7)
         ax.set_xticks(positions)
-        ax.set_xticklabels([run.filter + (f"\n{int(np.sum(run.diverged))} diverged"
-                                          if np.any(run.diverged) else "")
+        ax.set_xticklabels([run.filter + _twin(twins, run)
+                            + (f"\n{int(np.sum(run.diverged))} diverged"
+                               if np.any(run.diverged) else "")
                             for run in runs], fontsize=8)
         ax.axhline(0.0, color="0.5", lw=0.5)
         ax.set_title(f"{AXIS_NAMES[axis]}")
+        ax.set_ylabel("final error (arcmin)")
         ax.grid(True, axis="y", alpha=0.3)
-    axes[0].set_ylabel("final error (arcmin)")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    legend = [(Patch(facecolor="0.6", edgecolor="k", alpha=0.6), "quartiles"),
+              (Line2D([], [], color="k", lw=2.0), "median"),
+              (Line2D([], [], color="k", lw=0.8), "whiskers: 5-95 %")]
+    legend += [(Line2D([], [], **FLIER), "an episode beyond the whiskers")] * drawn["flier"]
+    legend += [(Line2D([], [], color="k", marker="x", markersize=7, linestyle="none"),
+                "a diverged episode")] * drawn["x"]
+    legend += [(tuple(Line2D([], [], color="k", marker=m, markersize=7, linestyle="none")
+                      for m in "^v"),
+                "one off the panel (up, down)")] * drawn["off"]
+    from matplotlib.legend_handler import HandlerTuple
+    fig.legend([h for h, _ in legend], [label for _, label in legend], loc="upper center",
+               ncol=3, fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.945),
+               handler_map={tuple: HandlerTuple(ndivide=None)})
     fig.suptitle(f"Final attitude error from the {start} start, {len(result.seeds)} episodes "
-                 "(box: quartiles; whiskers: 5-95 %; x: diverged episode)")
-    fig.subplots_adjust(left=0.06, right=0.99, bottom=0.14, top=0.86, wspace=0.2)
+                 "(boxes: those not diverged)")
+    fig.subplots_adjust(left=0.07, right=0.99, bottom=0.15, top=0.8, wspace=0.3)
     save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path
@@ -362,24 +520,24 @@ def plot_final_errors(result, start: str, path: Path) -> Path:
 
 def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float,
                              start: str, path: Path, twins: dict | None = None) -> Path:
-    """heading_convergence_<start>.png: per filter the fraction of all episodes whose
+    """heading_convergence_<start>.png: per filter the percentage of all episodes whose
     heading has converged by time t (a step at each episode's convergence time); the
-    curve ends below 1 by the diverged and the never converged episodes."""
+    curve ends below 100 % by the diverged and the never converged episodes."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(12, 5))
     for i, cdf in enumerate(cdfs):
         times = np.concatenate([[0.0], cdf.times, [cdf.t_end]])
-        fraction = np.concatenate([[0.0], np.arange(1, cdf.times.size + 1),
-                                   [cdf.times.size]]) / cdf.episodes
+        percent = 100.0 * np.concatenate([[0.0], np.arange(1, cdf.times.size + 1),
+                                          [cdf.times.size]]) / cdf.episodes
         label = (f"{cdf.filter}{_twin(twins, cdf)}: {cdf.times.size} of {cdf.episodes} "
                  "converged"
                  + (f", {cdf.not_converged} not" if cdf.not_converged else "")
                  + (f", {cdf.diverged} diverged" if cdf.diverged else ""))
-        ax.step(times, fraction, where="post", lw=1.8, label=label, **line_style(i))
+        ax.step(times, percent, where="post", lw=1.8, label=label, **line_style(i))
     ax.set_xlim(0.0, max(c.t_end for c in cdfs))
-    ax.set_ylim(-0.02, 1.02)
+    ax.set_ylim(-2.0, 102.0)
     ax.set_xlabel("time since the start of fine alignment (s)")
-    ax.set_ylabel("fraction of the episodes converged")
+    ax.set_ylabel("episodes converged (% of all)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.set_title(f"Heading convergence from the {start} start: |heading error| <= "
@@ -390,47 +548,106 @@ def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float
     return path
 
 
+STRIP = 0.022
+"""Height of a filter's strip of epochs outside its band (a fraction of the panel)."""
+
+
+def _strips(ax, excursions: list[NeesExcursion], colors: list[str]) -> dict[str, bool]:
+    """Per excursion with epochs outside its band, a strip in its colour along the top
+    (above the band) and one along the bottom (below), in stacked lanes; one collection,
+    in axes coordinates for y (no effect on the scale). Returns which kinds were drawn."""
+    from matplotlib.collections import PolyCollection
+    verts, faces, lanes = [], [], {"above": 0, "below": 0}
+    for excursion, color in zip(excursions, colors):
+        for kind, mask in (("above", excursion.above), ("below", excursion.below)):
+            spans = excursion.spans(mask)
+            if not spans:
+                continue
+            lane = lanes[kind]
+            lanes[kind] += 1
+            y0 = 1.0 - (lane + 1) * STRIP if kind == "above" else lane * STRIP
+            y1 = y0 + 0.8 * STRIP
+            verts += [[(x, y0), (x + w, y0), (x + w, y1), (x, y1)] for x, w in spans]
+            faces += [color] * len(spans)
+    if verts:
+        ax.add_collection(PolyCollection(verts, facecolors=faces, edgecolors="none",
+                                         transform=ax.get_xaxis_transform()),
+                          autolim=False)
+    return {kind: bool(n) for kind, n in lanes.items()}
+
+
+def _excursion_label(excursion: NeesExcursion) -> str:
+    if excursion.first_time_outside is None:
+        return "\n  inside its band at every epoch" if excursion.band else ""
+    return (f"\n  above band {as_percent(excursion.fraction_above)}, below "
+            f"{as_percent(excursion.fraction_below)} of epochs; out at "
+            f"{excursion.first_time_outside:.4g} s")
+
+
 def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
               probability: float = 0.95, twins: dict | None = None) -> Path:
     """nees_<start>.png: top, the mean NEES over the episodes not diverged with the
-    chi-square band of a mean of that many consistent episodes; bottom, the median with
-    its order-statistics band (log scale; dashed: the expected value ``dof``). The grey
+    chi-square band of a mean of that many consistent episodes, each filter's epochs
+    outside its band as a strip in its colour along the top (above) or the bottom (below)
+    and their fraction in its legend entry (``nees_excursions``); bottom, the median with
+    its order-statistics band (the filters named in the mean panel's legend only; log
+    scale; dashed: the expected value ``dof``). The grey
     band is for the most common episode count; a filter with another count has its own
     band edges as thin lines."""
     plt = pyplot()
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
     fig, axes = plt.subplots(2, 1, figsize=(13, 8), sharex=True)
     counts = [c.episodes for c in curves if c.episodes]
     common = max(set(counts), key=counts.count) if counts else 0
     t_end = max(float(c.t[-1]) for c in curves)
+    excursions = nees_excursions(curves, dof, probability)
+    percent = f"{100.0 * probability:g} %"
     for ax, stat, band, name in ((axes[0], "mean", mean_nees_band, "mean"),
                                  (axes[1], "median", median_nees_band, "median")):
         if common:
             low, high = band(dof, common, probability)
+            how = (f"chi2({common * dof})/{common}" if stat == "mean"
+                   else f"order stat. of chi2({dof})")
             ax.axhspan(low, high, color="0.6", alpha=0.3, lw=0,
-                       label=f"{probability:.0%} band of the {name} of {common} consistent "
-                       f"episodes [{low:.3g}, {high:.3g}]")
-        ax.axhline(dof, color="0.3", lw=0.8, ls="--", label=f"expected: {dof} states")
-        for i, curve in enumerate(curves):
+                       label=f"{percent} band, {name} of {common} episodes x {dof} "
+                       f"states:\n  {how} in [{low:.3g}, {high:.3g}]")
+        ax.axhline(dof, color="0.3", lw=0.8, ls="--",
+                   label=f"expected: {dof} (states)")
+        for i, (curve, excursion) in enumerate(zip(curves, excursions)):
             style = line_style(i)
             step = _stride(curve.t.size)
             values = getattr(curve, stat)
             label = (f"{curve.filter}{_twin(twins, curve)} ({curve.episodes} episodes"
                      + (f", {curve.diverged} diverged left out" if curve.diverged else "")
-                     + ")")
+                     + ")" + _excursion_label(excursion) if stat == "mean" else None)
             ax.plot(curve.t[::step], values[::step], lw=1.6, label=label, **style)
             if curve.episodes and curve.episodes != common:
                 for k, edge in enumerate(band(dof, curve.episodes, probability)):
                     ax.axhline(edge, color=style["color"], lw=0.7, alpha=0.8,
                                label=f"{curve.filter}: its band ({curve.episodes} episodes)"
                                if k == 0 else None)
+        handles, labels = ax.get_legend_handles_labels()
+        if stat == "median":
+            from matplotlib.lines import Line2D
+            handles.append(Line2D([], [], color="none"))
+            labels.append("filters: the mean panel's lines")
+        if stat == "mean":
+            own = [(e, line_style(i)["color"]) for i, e in enumerate(excursions)
+                   if not _twin(twins, e)]            # a twin's strips are its original's
+            drawn = _strips(ax, [e for e, _ in own], [c for _, c in own])
+            for kind, where in (("above", "top"), ("below", "bottom")):
+                if drawn[kind]:
+                    handles.append(Patch(facecolor="0.35"))
+                    labels.append(f"{where} strip: epochs {kind} band\n  (filter's colour)")
         ax.set_yscale("log")
         ax.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        ax.yaxis.set_minor_formatter(NullFormatter())
-        ax.set_ylabel(f"{name} NEES")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        ax.yaxis.set_minor_locator(NullLocator())   # 1-2-5 grid: no minor ticks to draw
+        ax.set_ylabel(f"{name} NEES (dimensionless, log scale)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(handles, labels, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  frameon=False)
     axes[0].set_xlim(0.0, t_end)
     axes[-1].set_xlabel("time since the start of fine alignment (s)")
     axes[0].set_title(f"NEES of the {dof} states the truth knows, {start} start "
@@ -462,7 +679,8 @@ def write_figures(result, out: Path) -> list[Path]:
             pick(bands), window,
             f"Attitude error from the {start} start over {len(result.seeds)} episodes",
             out / f"fine_error_{start}.png", twins))
-        paths.append(plot_final_errors(result, start, out / f"final_error_{start}.png"))
+        paths.append(plot_final_errors(result, start, out / f"final_error_{start}.png",
+                                       twins))
         paths.append(plot_heading_convergence(pick(cdfs), exp.heading_threshold_arcmin,
                                               start, out / f"heading_convergence_{start}.png",
                                               twins))
@@ -479,14 +697,19 @@ FIGURE_CAPTIONS = {
                   "and the filter's mean +-3 sigma (dotted); diverged episodes as faint lines "
                   "ending in x. Right: the experiment's RMS window.",
     "final_error": "Final attitude error per filter and axis (arcmin): box = quartiles, "
-                   "whiskers = 5-95 % of the episodes not diverged; x = a diverged episode "
+                   "thick line = median, whiskers = 5-95 % of the episodes not diverged, "
+                   "open circle = an episode beyond the whiskers; x = a diverged episode "
                    "(a triangle when off the panel).",
-    "heading_convergence": "Fraction of all episodes whose heading error stays within the "
+    "heading_convergence": "Percentage of all episodes whose heading error stays within the "
                            "experiment's threshold from time t to the end (empirical CDF of "
                            "the convergence time); diverged and never converged episodes "
-                           "keep a curve below 1.",
-    "nees": "NEES over time against its 95 % chi-square band (grey) for the mean (top) and "
-            "the median (bottom) of the episodes not diverged; dashed: the state count.",
+                           "keep a curve below 100 %.",
+    "nees": "NEES (dimensionless) over time against its 95 % chi-square band (grey) for the "
+            "mean (top; chi-square(n x states) / n for n episodes) and the median (bottom) "
+            "of the episodes not diverged; dashed: the state count. A strip in a filter's "
+            "colour at the top (bottom) of the mean panel marks the epochs where its mean "
+            "NEES is above (below) the band; its legend entry and the table \"Mean NEES "
+            "against its band\" give the fraction of such epochs.",
 }
 
 

@@ -2,7 +2,8 @@
 
 The page holds the scenario and its TOML, the settings and the command line, the
 paper-shaped tables (``tables.txt``), a per-filter summary of the tidy table
-(``results.csv``), the coarse-alignment errors (``coarse.csv``), the data faults flagged
+(``results.csv``), the mean NEES against its chi-square band (summary.json's
+"nees_band"), the coarse-alignment errors (``coarse.csv``), the data faults flagged
 and every figure (PNG) of the directory, embedded as base64 data URIs: no external
 resource, so the file can be mailed or attached as it is. A directory of campaign
 directories (``bench paper004 --swing all --out DIR``) gives one page with a section
@@ -18,9 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from aligngym.estimators.metrics import STATUSES
 from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.figures import FIGURE_CAPTIONS, figure_caption
+from aligngym.scenarios.figures import FIGURE_CAPTIONS, as_percent, figure_caption
 
 REQUIRED = ("settings.json", "results.csv", "tables.txt")
 """Files of a campaign directory the report reads (``write_outputs`` writes them)."""
@@ -139,6 +141,14 @@ def _campaign_section(directory: Path, name: str) -> str:
         parts += ["<h3>Coarse alignment error per episode</h3>",
                   "<details><summary>coarse.csv</summary>"
                   + _csv_table(directory / "coarse.csv") + "</details>"]
+    nees_band = _nees_band(directory / "summary.json")
+    if nees_band:
+        parts += ["<h3>Mean NEES against its band</h3>",
+                  "<p class=\"note\">From summary.json (\"nees_band\"): per filter and start, "
+                  "the epochs where the mean NEES of the episodes not diverged is outside the "
+                  "two-sided chi-square band of a mean of that many consistent episodes "
+                  "(chi-square(episodes x states) / episodes), as the NEES figure's strips "
+                  "mark them.</p>", nees_band]
     faults = _faults(directory / "summary.json")
     if faults:
         parts += ["<h3>Data faults flagged</h3>", f"<p>{escape(faults)}</p>"]
@@ -180,20 +190,23 @@ def _number(text: str) -> float:
 
 
 def _results_summary(path: Path) -> str:
-    """Per (filter, start): episodes, diverged, |final error| E, N, U median [p95] and
-    heading convergence median [p90] (s), NEES mean (median over episodes), covariance
-    repairs, ms per epoch; over the episodes not diverged."""
+    """Per (filter, start): episodes, how many in each status (converged, not converged,
+    diverged, lost: docs/estimators.md), |final error| E, N, U median [p95] and heading
+    convergence median [p90] (s), NEES mean (median over episodes), covariance repairs,
+    ms per epoch; over the episodes not diverged."""
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
     groups: dict[tuple[str, str], list[dict]] = {}
     for row in rows:
         groups.setdefault((row["filter"], row["start"]), []).append(row)
-    head = ["filter", "start", "episodes", "diverged", "|final E| (')", "|final N| (')",
+    head = ["filter", "start", "episodes", *STATUSES, "|final E| (')", "|final N| (')",
             "|final U| (')", "heading convergence (s)", "NEES mean", "covariance repairs",
             "ms / epoch"]
     body = []
     for (name, start), group in groups.items():
-        diverged = np.array([r["diverged"] == "True" for r in group])
+        status = [r.get("status") or ("diverged" if r["diverged"] == "True" else "")
+                  for r in group]                  # a directory from before the statuses
+        diverged = np.array([st == "diverged" for st in status])
         ok = [r for r, d in zip(group, diverged) if not d]
         col = lambda key: np.array([_number(r[key]) for r in ok])  # noqa: E731
 
@@ -207,7 +220,9 @@ def _results_summary(path: Path) -> str:
 
         nees = col("nees_mean")
         nees = nees[np.isfinite(nees)]
-        cells = [name, start, str(len(group)), str(int(diverged.sum())),
+        cells = [name, start, str(len(group)),
+                 *("-" if "" in status and st != "diverged" else str(status.count(st))
+                   for st in STATUSES),
                  *(stat(f"final_{a}_arcmin", 95) for a in ("phi_E", "phi_N", "phi_U")),
                  stat("heading_convergence_s", 90, absolute=False),
                  f"{np.median(nees):.4g}" if nees.size else "-",
@@ -228,6 +243,37 @@ def _csv_table(path: Path) -> str:
     return ("<table><tr>" + "".join(f"<th>{escape(h)}</th>" for h in rows[0]) + "</tr>"
             + "".join("<tr>" + "".join(f"<td class=\"num\">{escape(c)}</td>" for c in row)
                       + "</tr>" for row in rows[1:]) + "</table>")
+
+
+def _nees_band(path: Path) -> str:
+    """A table, per filter and start, of the mean NEES against its band, from
+    summary.json's "nees_band" (``figures.nees_band_summary``; '' without one)."""
+    if not path.is_file():
+        return ""
+    try:
+        bands = json.loads(path.read_text()).get("nees_band") or {}
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"report {path}: not valid JSON ({exc})") from None
+    percent = lambda v: "-" if v is None else as_percent(v)  # noqa: E731
+    head = ["filter", "start", "band", "above", "below", "first outside (s)", "in words"]
+    rows = []
+    for name, per_start in bands.items():
+        for start, entry in per_start.items():
+            band = entry.get("band")
+            first = entry.get("first_time_outside_s")
+            cells = [name, start,
+                     "-" if not band else (f"{100.0 * entry.get('probability', 0.95):g} %: "
+                                           f"[{band[0]:.3g}, {band[1]:.3g}]"),
+                     percent(entry.get("fraction_of_epochs_above")),
+                     percent(entry.get("fraction_of_epochs_below")),
+                     "-" if first is None else f"{first:.4g}", f"{name}: {entry.get('text', '')}"]
+            rows.append("<tr>" + "".join(
+                ("<td>" if i in (0, 1, 6) else '<td class="num">') + escape(str(c)) + "</td>"
+                for i, c in enumerate(cells)) + "</tr>")
+    if not rows:
+        return ""
+    return ("<table class=\"nees-band\"><tr>" + "".join(f"<th>{escape(h)}</th>" for h in head)
+            + "</tr>" + "".join(rows) + "</table>")
 
 
 def _faults(path: Path) -> str:

@@ -9,7 +9,8 @@ final NEES). Tolerances per kind of metric, and why:
   another CPU or BLAS changes the last bits, which the fading-factor filters amplify
   (measured: up to 1.4e-6 relative from a last-bit change of MuJoCo's kinematics), while
   any change of the physics, the sensors or a filter moves them by far more than 1e-3;
-- diverged fractions: exact (an episode that flips is a regression to look at);
+- status fractions (converged, not converged, diverged, lost): exact (an episode that
+  flips is a regression to look at);
 - heading convergence times: 1 s, the filter step (a rounding flip moves one epoch).
 """
 from __future__ import annotations
@@ -42,7 +43,7 @@ SKIPPED = ("us_per_epoch", "ms_per_epoch")
 
 def tolerance(path: str) -> tuple[float, float]:
     """(relative, absolute) tolerance of a metric, by its kind (module docstring)."""
-    if path.endswith("diverged_fraction"):
+    if path.endswith("_fraction"):
         return 0.0, 0.0
     if path.endswith("convergence_s") or path.endswith("convergence_p90_s"):
         return 0.0, 1.0

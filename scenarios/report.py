@@ -14,27 +14,27 @@ import numpy as np
 from aligngym.models.units import arcmin
 from aligngym.scenarios.atomic import atomic_path, write_json, write_text
 from aligngym.scenarios.campaign import AXES, CampaignResult, episode_metrics
-from aligngym.scenarios.figures import write_figures
+from aligngym.scenarios.figures import nees_band_summary, write_figures
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
     + [f"final_{a}_arcmin" for a in AXES] + [f"rms_{a}_arcmin" for a in AXES]
     + [f"final_sigma_{a}_arcmin" for a in AXES]
     + ["final_pitch_arcmin", "final_roll_arcmin", "final_heading_arcmin",
-       "heading_convergence_s", "nees_mean", "nees_final", "diverged", "diverged_reason",
-       "diverged_time_s", "covariance_repairs", "ms_per_epoch"])
+       "heading_convergence_s", "nees_mean", "nees_final", "status", "status_reason",
+       "diverged", "diverged_time_s", "covariance_repairs", "ms_per_epoch"])
 
 
 def format_tables(result: CampaignResult) -> str:
     """The experiment's paper-shaped tables, and a line on the data faults flagged (when
-    any): flagged episodes are counted apart from diverged ones."""
+    any): flagged episodes are counted apart from the episodes' statuses."""
     text = result.experiment.format_tables(result)
     faults = result.faults()
     if faults["flagged_episodes"]:
         kinds = ", ".join(f"{k} {n}" for k, n in sorted(faults["by_kind"].items()))
         text += (f"\nData faults flagged: {faults['flagged_episodes']} of {faults['episodes']} "
                  f"episodes ({kinds}); IMU data are repaired before the filters, the other "
-                 "faults are left to them; the diverged column above judges them apart")
+                 "faults are left to them; the status columns above judge them apart")
     return text
 
 
@@ -86,10 +86,13 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     campaign figures (``scenarios.figures``) and the experiment's own (PNG; figures=False
     leaves them out); and the JSON summary to json_path. Returns the paths written."""
     written = []
+    # summary.json: the experiment's summary, and the mean NEES against its band (not in
+    # result.summary(), whose paths are regress's metrics)
+    summary = {**result.summary(), "nees_band": nees_band_summary(result)}
     if json_path is not None:
         path = Path(json_path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        written.append(write_json(path, result.summary()))
+        written.append(write_json(path, summary))
     if out_dir is None:
         return written
     out = Path(out_dir)
@@ -117,11 +120,12 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
         series[f"{key}__factors"] = run.result.factors.astype(np.float32)
         series[f"{key}__nees"] = run.nees.astype(np.float32)
         series[f"{key}__diverged"] = np.asarray(run.diverged, bool)
+        series[f"{key}__status"] = np.asarray(run.status)
     with atomic_path(out / "timeseries.npz") as tmp:
         np.savez_compressed(tmp, **series)
     written.append(out / "timeseries.npz")
     written += [write_text(out / "tables.txt", format_tables(result) + "\n"),
-                write_json(out / "summary.json", result.summary()),
+                write_json(out / "summary.json", summary),
                 write_json(out / "settings.json", campaign_settings(result, command))]
     if figures:
         written += write_figures(result, out)

@@ -81,14 +81,15 @@ def test_the_table_keeps_its_columns_apart_at_any_size():
     from aligngym.models.units import arcmin
     from aligngym.testing import _check_run
     error = np.array([[[0.1, -2.0, -10745.089]], [[-12345.678, 0.5, 3.0]]]) * arcmin
-    run = SimpleNamespace(error_n=error, diverged=np.array([True, False]),
-                          reason=["final error > 5 x 3 sigma", ""])
+    run = SimpleNamespace(error_n=error, status=np.array(["lost", "not converged"]),
+                          reason=["final error > 10 deg", "final error > the 60' band"])
     measured, table = _check_run(run, "ekf", "static-large-azimuth", "large-azimuth", 2,
                                  0, [123456, 2], 10.0, None)
-    assert measured["diverged"] == 1
+    assert (measured["lost"], measured["not_converged"], measured["diverged"]) == (1, 1, 0)
+    assert "1 of 2 episodes lost" in table.splitlines()[0]
     rows = [line.split() for line in table.splitlines()[2:]]
-    assert rows[0][:4] == ["123456", "0.100", "-2.000", "-10745.089"]
-    assert rows[1] == ["2", "-12345.678", "0.500", "3.000"]
+    assert rows[0][:5] == ["123456", "0.100", "-2.000", "-10745.089", "lost:"]
+    assert rows[1][:5] == ["2", "-12345.678", "0.500", "3.000", "not"]
     assert rows[2][0] == "RMS" and len(rows[2]) == 4
 
 

@@ -90,8 +90,8 @@ def test_errors_on_the_file_match_the_drawn_biases(files):
     (["simulate", "ship-sway-rotary", "--duration", "-5", "--out", "x.npz"], "--duration"),
     (["simulate", "ship-sway-rotary", "--imu-rate", "0", "--out", "x.npz"], "--imu-rate"),
     (["simulate", "ship-sway-rotary", "--imu-rate", "5000", "--out", "x.npz"],
-     "run.imu_rate = 5000 Hz is out of range"),
-    (["simulate", "ship-sway-rotary", "--duration", "0.015", "--out", "x.npz"], "run.duration"),
+     "--imu-rate = 5000 Hz is out of range"),
+    (["simulate", "ship-sway-rotary", "--duration", "0.015", "--out", "x.npz"], "--duration = 0.015 s"),
     (["simulate", "ship-sway-rotary", "--seed", "-1", "--out", "x.npz"], "--seed"),
     (["simulate", "ship-sway-rotary", "--duration", "1", "--out", "x.csv"], ".npz"),
     (["simulate", "ship-sway-rotary"], "--out"),
@@ -112,7 +112,7 @@ def test_bad_scenario_file_names_field(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text(text)
     code, _, err = run_cli("simulate", str(path), "--out", str(tmp_path / "x.npz"))
-    assert code == 2 and "origin.latitude = 95 deg is out of range [-89, 89]" in err
+    assert code == 2 and "origin.latitude_deg = 95 deg is out of range [-89, 89]" in err
 
 
 def test_imu_rate_option_changes_sample_count(tmp_path):

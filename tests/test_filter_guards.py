@@ -393,3 +393,87 @@ def test_an_adapted_prediction_nan_or_beyond_repair_is_flagged(monkeypatch):
     assert f.health.reason[0] == "predicted covariance NaN/inf"
     assert f.health.reason[2] == "predicted covariance not positive definite"
     assert list(f.health.repairs) == [0, 0, 1, 0]
+
+
+# --- mutation survivors: the union of needs, a batch-wide outage, a NaN state alone,
+# --- a diverged episode's record, three components with one missing ---------------------
+
+def test_filter_needs_is_the_union_when_rule_and_policy_need_the_same():
+    from aligngym.estimators.adaptation import MeasurementAxisFading
+    from aligngym.estimators.filters import FILTERS, filter_needs, register_filter
+    from aligngym.estimators.rules import CubatureRule
+
+    class AxesCubature(CubatureRule):
+        needs = frozenset({"axes"})
+    register_filter("test-axes-twice", AxesCubature, MeasurementAxisFading, fading=True)
+    try:
+        assert filter_needs("test-axes-twice") == {"axes"}
+    finally:
+        FILTERS.pop("test-axes-twice")
+
+
+@pytest.mark.parametrize("name", ["kf", "ukf"])
+def test_an_outage_of_the_whole_batch_leaves_the_prediction(name):
+    """Every component of every episode missing (a GNSS outage shared by the batch):
+    no gain, x and P are the prediction's, nothing flagged."""
+    fn = name == "ukf"
+    f = make_filter(name)
+    f.reset(X0, P0)
+    f.predict(transition(fn))
+    f.update(observation(np.full((B, M), np.nan), fn=fn))
+    x_pred, P_pred = predicted()
+    np.testing.assert_allclose(f.x, x_pred, rtol=1e-12)
+    np.testing.assert_allclose(f.P, P_pred, rtol=1e-12)
+    assert not f.health.diverged.any() and not f.valid.any()
+    assert np.all(f.innovation == 0.0)
+
+
+def test_a_nan_state_with_a_finite_covariance_is_flagged():
+    f = make_filter("kf")
+    f.reset(X0, P0)
+    f.predict(transition())
+    f.x[2, 0] = np.nan
+    f.update(observation())
+    assert list(f.health.diverged) == [False, False, True, False]
+    assert f.health.reason[2] == "predicted state or covariance NaN/inf"
+    x, P = kf_update(*predicted(), Z)
+    keep = [0, 1, 3]
+    np.testing.assert_allclose(f.x[keep], x[keep], rtol=1e-9)
+    np.testing.assert_allclose(f.P[keep], P[keep], rtol=1e-9)
+
+
+def test_a_diverged_episodes_record_is_inert():
+    """Episode 2 diverged at reset: at a later update with a missing component, its
+    recorded components are invalid and its innovation zero, not NaN."""
+    P = P0.copy()
+    P[2] = -np.eye(N)
+    f = make_filter("kf")
+    f.reset(X0, P)
+    f.predict(transition())
+    z = Z.copy()
+    z[2, 1] = np.nan
+    f.update(observation(z))
+    assert not f.valid[2].any() and f.valid[[0, 1, 3]].all()
+    assert np.all(f.innovation[2] == 0.0)
+
+
+@pytest.mark.parametrize("name", ["kf", "ukf"])
+def test_three_correlated_components_with_the_middle_one_missing(name):
+    """R fully correlated over three components, the middle one missing in episode 1,
+    the first and last in episode 3: the update is the textbook one on R's block of the
+    present components (the cross terms with a missing one leave no trace)."""
+    rng = np.random.default_rng(7)
+    H3 = rng.standard_normal((B, 3, N))
+    A = rng.standard_normal((3, 3))
+    R3 = (A @ A.T + 0.5 * np.eye(3)) * np.ones((B, 1, 1))
+    z = rng.standard_normal((B, 3))
+    z[1, 1] = z[3, 0] = z[3, 2] = np.nan
+    fn = name == "ukf"
+    f = make_filter(name)
+    f.reset(X0, P0)
+    f.predict(transition(fn))
+    f.update(Observation(noise=R3.copy(), z=z, t=1.0, **(
+        {"fn": lambda x: np.einsum("bij,b...j->b...i", H3, x)} if fn else {"matrix": H3})))
+    x, P = kf_update(*predicted(), z, H3, R3)
+    np.testing.assert_allclose(f.x, x, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(f.P, P, rtol=1e-9, atol=1e-12)

@@ -42,37 +42,74 @@ def test_convergence_time_is_the_first_time_after_which_the_error_stays_within()
     np.testing.assert_array_equal(convergence_time(t, error, 0.2), [5.0, 0.0, 5.0, 5.0, 1.0])
 
 
+BAND = 5 * DEG / 60          # a 5' convergence band
+
+
+def judge(error, sigma, flagged=None, reasons=None, rule=None):
+    from aligngym.estimators.metrics import StatusRule
+    error, sigma = np.atleast_2d(error), np.atleast_2d(sigma)
+    B = error.shape[0]
+    flagged = np.zeros(B, bool) if flagged is None else np.asarray(flagged)
+    return (rule or StatusRule()).apply(error, sigma, BAND, flagged, reasons or [""] * B)
+
+
 def test_divergence_is_beyond_five_times_three_sigma_and_the_floor():
     """ratio 5 x 3 sigma = 15 sigma, and 1 arcmin: an error of exactly 15 sigma is not
-    diverged, 15.01 sigma is; below the 1' floor nothing is, however small the sigma."""
-    from aligngym.estimators.metrics import DivergenceRule
+    diverged, 15.01 sigma is; below the 1' floor nothing is, however small the sigma.
+    Errors here stay under 10 deg, so none is lost."""
     arcmin = DEG / 60
-    error = np.array([[0.0, 0.0, 15.0], [0.0, 15.01, 0.0], [0.9 * arcmin, 0.0, 0.0],
-                      [1.1 * arcmin, 0.0, 0.0], [-15.01, 0.0, 0.0]])
-    sigma = np.array([[1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1e-3 * arcmin] * 3,
-                      [1e-3 * arcmin] * 3, [1.0, 1.0, 1.0]])
-    diverged, reason = DivergenceRule(sigma_bound=np.inf).apply(
-        error, sigma, np.zeros(5, bool), [""] * 5)
-    assert diverged.tolist() == [False, True, False, True, True]
+    error = np.array([[0.0, 0.0, 0.15], [0.0, 0.1501, 0.0], [0.9 * arcmin, 0.0, 0.0],
+                      [1.1 * arcmin, 0.0, 0.0], [-0.1501, 0.0, 0.0]])
+    sigma = np.array([[0.01] * 3, [0.01] * 3, [1e-3 * arcmin] * 3, [1e-3 * arcmin] * 3,
+                      [0.01] * 3])
+    status, reason = judge(error, sigma)
+    assert status.tolist() == ["not converged", "diverged", "converged", "diverged",
+                               "diverged"]
     assert reason[1] == "final error > 5 x 3 sigma"
 
 
-def test_divergence_at_its_edges_and_when_several_reasons_hold():
-    """An error of exactly the floor, a sigma of exactly pi: neither is diverged; two
-    reasons at once (flagged and not finite, lost and not finite, lost and blown) are
-    still diverged."""
-    from aligngym.estimators.metrics import DivergenceRule
-    rule = DivergenceRule()
-    error = np.array([[rule.floor, 0.0, 0.0], [0.0, 0.0, 0.0], [np.nan, 0.0, 0.0],
-                      [np.nan, 0.0, 100.0], [0.0, 0.0, 1000.0]])
+def test_the_four_statuses_of_an_honest_and_a_confident_filter():
+    """The issue's cases: lost-but-honest (145 deg off, sigma 200 deg: it knows) and
+    lost-and-confident are both lost, beyond 10 deg whatever the sigma; 8 deg off with a
+    3 deg sigma is not converged (the filter says so), 8 deg off with a 1' sigma is
+    diverged; 0.5' off with a 1' sigma converged; exactly 10 deg is not lost."""
+    arcmin = DEG / 60
+    error = np.array([[0.0, 0.0, 145.0], [0.0, 0.0, -145.0], [0.0, 0.0, 8.0],
+                      [0.0, 0.0, 8.0], [0.5 / 60, 0.0, 0.0], [0.0, 0.0, 10.0]]) * DEG
+    sigma = np.array([[1.0, 1.0, 200.0 * 60], [1.0, 1.0, 1.0], [1.0, 1.0, 180.0],
+                      [1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, 200.0]]) * arcmin
+    status, reason = judge(error, sigma)
+    assert status.tolist() == ["lost", "lost", "not converged", "diverged", "converged",
+                               "not converged"]
+    assert reason[:4] == ["final error > 10 deg", "final error > 10 deg",
+                          "final error > the 5' band", "final error > 5 x 3 sigma"]
+    assert reason[4] == ""
+
+
+def test_status_at_its_edges_and_when_several_reasons_hold():
+    """An error of exactly the floor, or of exactly the band: converged; a sigma of
+    exactly pi: converged, above pi not converged; a flag or a NaN is diverged before
+    any other reason (a NaN with 100 rad, a flag with a lost error)."""
+    from aligngym.estimators.metrics import StatusRule
+    rule = StatusRule()
+    error = np.array([[rule.floor, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0],
+                      [np.nan, 0.0, 100.0], [0.0, 0.0, BAND], [0.0, 0.0, 0.0],
+                      [0.0, 0.0, 0.0]])
     sigma = np.array([[1e-9] * 3, [1.0, 1.0, np.pi], [1.0] * 3, [1.0] * 3,
-                      [1.0, 1.0, 10.0]])
-    flagged = np.array([False, False, True, False, False])
-    diverged, reason = rule.apply(error, sigma, flagged, ["", "", "frozen", "", ""])
-    assert diverged.tolist() == [False, False, True, True, True]
-    assert diverged.dtype == bool
-    assert reason == ["", "", "frozen", "final error not finite",
-                      "final error > 5 x 3 sigma"]
+                      [1.0, 1.0, 1.0], [1.0, 1.0, 3.2], [1.0, np.nan, 1.0]])
+    flagged = np.array([False, False, True, False, False, False, False])
+    status, reason = judge(error, sigma, flagged, ["", "", "frozen", "", "", "", ""])
+    assert status.tolist() == ["converged", "converged", "diverged", "diverged",
+                               "converged", "not converged", "diverged"]
+    assert reason == ["", "", "frozen", "final error or sigma not finite", "",
+                      "attitude sigma > 180 deg", "final error or sigma not finite"]
+
+
+def test_status_fractions_count_each_status():
+    from aligngym.estimators.metrics import status_fractions
+    fractions = status_fractions(np.array(["lost", "converged", "converged", "diverged"]))
+    assert fractions == {"converged_fraction": 0.5, "not_converged_fraction": 0.0,
+                         "diverged_fraction": 0.25, "lost_fraction": 0.25}
 
 
 def test_nees_is_the_mahalanobis_square_by_hand():

@@ -315,7 +315,7 @@ def test_slip_burst_is_flagged_by_every_filter_which_recovers(slip_campaign):
         assert summary[name]["diverged_fraction"] == 0.0, name
         assert summary[name]["flagged_epochs"] < 10, name    # of 195: not flag-everything
     for run in slip_campaign.runs:
-        assert all(bool(r) == bool(d) for r, d in zip(run.reason, run.diverged))
+        assert all(bool(r) == (s != "converged") for r, s in zip(run.reason, run.status))
     # From ~9 deg after the coarse stage to tens of arcminutes in 150 s of driving: 51'
     # RMS from the drawn start velocity, 17' from the odometer's (1.3 m/s off); neither
     # is consistent at this stop (sigma 12-15', NEES 30-90 of 9).
@@ -371,7 +371,7 @@ def test_paper000_bad_input(tmp_path):
         load_scenario(short_ring(tmp_path, extra="slips = [[300.0, 0.3, 0.5]]"))
     with pytest.raises(ConfigError, match=r"odometer.scale_error must be in \(-0.5, 0.5\)"):
         load_scenario(short_ring(tmp_path, extra="scale_error = 0.7"))
-    with pytest.raises(ConfigError, match="--disturbance 'mud'; valid: none, slip, all"):
+    with pytest.raises(ConfigError, match="^disturbance must be one of none, slip, all, got 'mud'$"):
         Paper000Experiment(scenario=path, disturbance="mud").scenario_config()
 
 

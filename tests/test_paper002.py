@@ -235,11 +235,12 @@ def test_bench_paper002_json_and_resume(tmp_path):
             str(out), "--workers", "1", "--no-figures"]
     assert main(args + ["--json", str(tmp_path / "a.json")]) == 0
     summary = json.loads((tmp_path / "a.json").read_text())
-    assert set(summary) == {"fine", "data_faults"}
+    assert set(summary) == {"fine", "data_faults", "nees_band"}
     assert set(summary["fine"]) == {"ekf", "sghkf-2"}
     assert summary["data_faults"]["flagged_episodes"] == 0
     for stats in summary["fine"].values():
         assert set(stats) == {"mean_arcmin", "std_arcmin", "rms_arcmin", "diverged_fraction",
+                              "converged_fraction", "not_converged_fraction", "lost_fraction",
                               "convergence_s", "points", "us_per_epoch"}
         assert len(stats["rms_arcmin"]) == 3
     assert summary["fine"]["sghkf-2"]["points"] == 21  # 2n + 1, n = 10

@@ -123,14 +123,15 @@ def test_campaign_outputs_and_json_shape(sway_campaign, tmp_path):
                  "fine_error_max.png"):
         assert (out / name).stat().st_size > 0
     summary = json.loads(json_path.read_text())
-    assert set(summary) == {"coarse", "fine", "data_faults"}
+    assert set(summary) == {"coarse", "fine", "data_faults", "nees_band"}
     assert set(summary["coarse"]) == {"mean_deg", "max_deg", "min_deg"}
     assert all(len(v) == 3 for v in summary["coarse"].values())
     for per_start in summary["fine"].values():
         assert set(per_start) == {"mean", "max"}
         for stats in per_start.values():
             assert set(stats) == {"mean_arcmin", "std_arcmin", "rms_arcmin",
-                                  "diverged_fraction"}
+                                  "converged_fraction", "not_converged_fraction",
+                                  "diverged_fraction", "lost_fraction"}
     lines = (out / "results.csv").read_text().splitlines()
     assert len(lines) == 1 + 4 * 6 * 2
     # The max start error is the largest coarse error by magnitude, per axis.
@@ -168,6 +169,36 @@ def test_resume_refuses_another_experiment(tmp_path):
                  str(out), "--seed", "5", "--resume", "--workers", "1"]) == 2
 
 
+def test_the_same_command_twice_reuses_the_campaign_and_an_edited_scenario_is_refused(
+        tmp_path, capsys):
+    """The README's first command run twice: the second run finds this same campaign
+    (settings, scenario content, seed), reuses its episode files, prints the same
+    tables and exits 0. Once the scenario file is edited (the IMU rate), the directory
+    holds another campaign: refused naming the scenario, with --resume as well."""
+    scenario = tmp_path / "my.toml"
+    from aligngym.scenarios.config import scenario_path
+    scenario.write_text(scenario_path("ship-sway-rotary").read_text())
+    out, summary = tmp_path / "c", tmp_path / "c" / "summary.json"
+    base = ["bench", "paper003", "--episodes", "1", "--filters", "kf", "--workers", "1",
+            *FAST, "--scenario", str(scenario), "--out", str(out), "--json", str(summary)]
+    assert main(base) == 0
+    first = capsys.readouterr()
+    episode = next((out / "episodes").glob("*.npz"))
+    kept = episode.stat().st_mtime_ns
+    numbers = json.loads(summary.read_text())
+    assert main(base) == 0
+    second = capsys.readouterr()
+    assert "holds this campaign already" in second.err
+    assert episode.stat().st_mtime_ns == kept and json.loads(summary.read_text()) == numbers
+    assert second.out.splitlines()[:-1] == first.out.splitlines()[:-1]   # but the time
+    scenario.write_text(scenario.read_text().replace("imu_rate_hz = 100.0", "imu_rate_hz = 50.0"))
+    for extra in ([], ["--resume"]):
+        assert main(base + extra) == 2
+        err = capsys.readouterr().err
+        assert "differs in scenario (its content)" in err, err
+        assert episode.stat().st_mtime_ns == kept
+
+
 def test_outputs_checked_before_any_work(tmp_path, capsys):
     """An --out holding a campaign needs --resume or --force (which removes its episode
     files: no other seed's episodes mix in); an unwritable --json or --out is refused
@@ -177,7 +208,8 @@ def test_outputs_checked_before_any_work(tmp_path, capsys):
     assert main(base + ["--out", str(out)]) == 0
     capsys.readouterr()
     assert main(base + ["--out", str(out), "--seed", "5"]) == 2
-    assert "holds a campaign; use --resume" in capsys.readouterr().err
+    assert ("holds another campaign (it differs in seed); use --force to replace it"
+            in capsys.readouterr().err)
     assert main(base + ["--out", str(out), "--seed", "5", "--force"]) == 0
     from aligngym.scenarios.campaign import episode_seeds
     assert [p.name for p in (out / "episodes").glob("*.npz")] == [

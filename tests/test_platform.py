@@ -124,9 +124,9 @@ def _variant(tmp_path, old, new):
 
 
 @pytest.mark.parametrize("old, new, message", [
-    ("pitch_deg = 0.3", "pitch_deg = 45.0", r"motion.pitch = 45 deg is out of range \[-10, 10\]"),
-    ("roll_deg = -0.2", "roll_deg = -12", r"motion.roll = -12 deg is out of range \[-10, 10\]"),
-    ("yaw_deg = 30.0", "yaw_deg = 400", r"motion.yaw = 400 deg is out of range \[-360, 360\]"),
+    ("pitch_deg = 0.3", "pitch_deg = 45.0", r"motion.pitch_deg = 45 deg is out of range \[-10, 10\]"),
+    ("roll_deg = -0.2", "roll_deg = -12", r"motion.roll_deg = -12 deg is out of range \[-10, 10\]"),
+    ("yaw_deg = 30.0", "yaw_deg = 400", r"motion.yaw_deg = 400 deg is out of range \[-360, 360\]"),
     ("yaw_deg = 30.0", "yaw_deg = \"north\"", r"motion.yaw_deg: expected a number"),
     ("yaw_deg = 30.0", "gimbal_outer_rate_deg_s = 6.0",
      r"motion.gimbal_outer_rate_deg_s is not a parameter of the static platform; "
@@ -150,4 +150,4 @@ def test_cli_simulate_and_bad_file(tmp_path, capsys):
     bad = _variant(tmp_path, "pitch_deg = 0.3", "pitch_deg = 45.0")
     assert main(["simulate", str(bad), "--out", str(tmp_path / "x.npz")]) == 2
     err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "motion.pitch = 45 deg" in err
+    assert len(err.strip().splitlines()) == 1 and "motion.pitch_deg = 45 deg" in err

@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import aligngym
-from aligngym.estimators.metrics import DivergenceRule
+from aligngym.estimators.metrics import StatusRule
 from aligngym.models.units import arcmin
 from aligngym.scenarios import simulate as simulate_module
 from aligngym.scenarios.atomic import atomic_path, is_temporary, write_json
@@ -354,15 +354,18 @@ def test_a_filter_the_model_cannot_run_is_refused_before_any_simulation(monkeypa
         assert_alignment("swakf", "ship-sway-rotary", episodes=1)
 
 
-# --- 7. a lost filter is diverged -----------------------------------------------------------
-def test_a_blown_up_sigma_counts_as_diverged():
-    """The issue's case: heading sigma 7e7 arcmin and an error of 8270 arcmin; the 5 x 3
-    sigma test cannot fire, the sigma bound does; a healthy 60 deg sigma does not."""
-    error = np.array([[0.1, 0.1, 8270.0], [0.1, 0.1, 30.0]]) * arcmin
-    sigma = np.array([[1.0, 1.0, 7e7], [1.0, 1.0, 3600.0]]) * arcmin
-    diverged, reason = DivergenceRule().apply(error, sigma, np.zeros(2, bool), ["", ""])
-    assert diverged.tolist() == [True, False]
-    assert reason == ["attitude sigma > 180 deg", ""]
+# --- 7. a lost filter is lost, diverged or not converged, never passed -------------------------
+def test_a_blown_up_sigma_is_lost_or_not_converged():
+    """The issue's case: heading sigma 7e7 arcmin and an error of 8270 arcmin (138 deg);
+    the 5 x 3 sigma test cannot fire, the 10 deg bound does (lost); a 300 deg sigma
+    with a small error is not converged (the filter knows), a healthy 60 deg sigma with
+    a 30' error inside the 60' band is converged."""
+    error = np.array([[0.1, 0.1, 8270.0], [0.1, 0.1, 1.0], [0.1, 0.1, 30.0]]) * arcmin
+    sigma = np.array([[1.0, 1.0, 7e7], [1.0, 1.0, 18000.0], [1.0, 1.0, 3600.0]]) * arcmin
+    status, reason = StatusRule().apply(error, sigma, 60 * arcmin, np.zeros(3, bool),
+                                        ["", "", ""])
+    assert status.tolist() == ["lost", "not converged", "converged"]
+    assert reason == ["final error > 10 deg", "attitude sigma > 180 deg", ""]
 
 
 def test_a_nan_sigma_or_error_counts_as_diverged_and_a_flag_keeps_its_reason():
@@ -374,12 +377,11 @@ def test_a_nan_sigma_or_error_counts_as_diverged_and_a_flag_keeps_its_reason():
     sigma = np.array([[1.0, 1.0, np.nan], [1.0, 1.0, 3.0], [1.0, 1.0, 3.0],
                       [np.nan, 1.0, 3.0]]) * arcmin
     flagged = np.array([False, False, False, True])
-    diverged, reason = DivergenceRule().apply(error, sigma, flagged,
-                                              ["", "", "", "covariance not positive definite"])
-    assert diverged.tolist() == [True, True, False, True]
-    assert reason[0] == "attitude sigma > 180 deg" and reason[2] == ""
-    assert reason[1] == "final error not finite"
-    assert reason[3] == "covariance not positive definite"
+    status, reason = StatusRule().apply(error, sigma, 60 * arcmin, flagged,
+                                        ["", "", "", "covariance not positive definite"])
+    assert status.tolist() == ["diverged", "diverged", "converged", "diverged"]
+    assert reason[0] == reason[1] == "final error or sigma not finite"
+    assert reason[2] == "" and reason[3] == "covariance not positive definite"
 
 
 # --- 8. runs refused before they start ----------------------------------------------------------

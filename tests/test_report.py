@@ -4,6 +4,7 @@ headless browser."""
 import base64
 import json
 import shutil
+from html import escape
 from html.parser import HTMLParser
 from pathlib import Path
 from types import SimpleNamespace
@@ -17,6 +18,7 @@ from aligngym.scenarios.cli import main
 from aligngym.scenarios.experiments import experiment
 from aligngym.scenarios.figures import (error_bands, heading_convergence_cdfs, mean_nees_band,
                                median_nees_band, nees_curves)
+from aligngym.scenarios.html_report import render_report
 from aligngym.scenarios.report import format_tables, write_outputs
 
 CAMPAIGNS = {
@@ -265,6 +267,33 @@ def test_report_holds_every_figure_and_table(campaigns, paper):
     for run in result.runs:
         assert run.filter in text
     assert f"{settings['paper']} on {settings['scenario']}" in text
+
+
+@pytest.mark.parametrize("paper", CAMPAIGNS)
+def test_summary_and_report_state_the_mean_nees_against_its_band(campaigns, paper):
+    """summary.json's "nees_band" (issue 46): per filter and start the band of its
+    episodes not diverged and the fraction of the epochs outside it, as the NEES curves
+    give them; the report has a row per filter and start in the same words."""
+    out, result, _, _ = campaigns[paper]
+    bands = json.loads((out / "summary.json").read_text())["nees_band"]
+    dof = result.experiment.nees_dof()
+    for curve in nees_curves(result):
+        entry = bands[curve.filter][curve.start]
+        assert entry["episodes"] == curve.episodes and entry["dof"] == dof
+        if not curve.episodes:                     # every episode diverged: no band
+            assert entry["band"] is None and entry["fraction_of_epochs_above"] is None
+            continue
+        low, high = mean_nees_band(dof, curve.episodes)
+        assert entry["band"] == [low, high]
+        counted = np.isfinite(curve.mean)
+        assert entry["fraction_of_epochs_above"] == pytest.approx(
+            np.sum(curve.mean[counted] > high) / counted.sum())
+        assert entry["fraction_of_epochs_below"] == pytest.approx(
+            np.sum(curve.mean[counted] < low) / counted.sum())
+    page = render_report(out)
+    for per_start in bands.values():
+        for entry in per_start.values():
+            assert escape(entry["text"]) in page
 
 
 def test_report_of_a_directory_of_campaigns(campaigns, tmp_path):

@@ -234,3 +234,29 @@ def test_unscented_spread_places_the_points_and_equals_its_kappa():
     np.testing.assert_allclose(wc, wck, rtol=1e-14)
     with pytest.raises(ValueError, match="spread n \\+ kappa must be > 0"):
         UnscentedRule(spread=0.0)
+
+
+@pytest.mark.parametrize("rule", [CubatureRule(), GaussHermiteRule(2), UnscentedRule(),
+                                  ReducedGaussHermiteRule(2), ReducedGaussHermiteRule(3)],
+                         ids=lambda r: r.name)
+def test_a_wide_angle_is_averaged_around_the_image_of_the_mean(rule):
+    """An angle state with a wide prior (sigma 0.8 rad: the cubature points of 10 states
+    reach +-2.5 rad, paper 002's large starts) under the identity map, a linear map on
+    which every rule is exact: the mean is the prior's and the variance its sigma^2. A
+    reference at an outer point (the cubature rule and even Gauss-Hermite orders have
+    none at the mean) would wrap the opposite points by 2 pi: mean 1.2 rad off."""
+    n = 10
+    P = np.diag([0.8 ** 2] + [1e-4] * (n - 1))[None]
+    m = np.zeros((1, n))
+    m[0, 0] = 0.3
+
+    def conditional(zeta):
+        return np.broadcast_to(np.eye(n), zeta.shape[:-1] + (n, n)), np.zeros(
+            zeta.shape[:-1] + (n,))
+
+    fmap = GaussianMap(noise=np.zeros((1, n, n)), fn=lambda x: x.copy(), angles=(0,),
+                       conditional=conditional, nonlinear=(0,))
+    mean, cov, cross = rule.moments(fmap, m, P)
+    np.testing.assert_allclose(mean, m, atol=1e-12)
+    np.testing.assert_allclose(cov, P, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(cross, P, rtol=1e-9, atol=1e-15)

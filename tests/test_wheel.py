@@ -102,7 +102,7 @@ def test_paper002_regress_from_the_wheel(installed, users_directory):
                                       "--workers", "1"),
                              cwd=users_directory, capture_output=True, text=True)
     assert regress.returncode == 0, regress.stdout + regress.stderr
-    assert "paper002: 54 metrics, 0 beyond tolerance" in regress.stdout
+    assert "paper002: 66 metrics, 0 beyond tolerance" in regress.stdout
 
 
 def test_every_module_imports_under_aligngym_only():

@@ -4,6 +4,7 @@ filter run once, batched over all episodes from all starts."""
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from aligngym.scenarios.interrupts import raise_if_interrupted
@@ -38,8 +39,11 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
                     executor, address)
     claim_directory(out)
     with campaign_lock(out):           # one writer at a time
-        check_manifest(out, experiment, seed, resume, force, filters)
-        return _run(experiment, episodes, seed, filters, out, resume, workers, progress,
+        same = check_manifest(out, experiment, seed, resume, force, filters)
+        if same and progress:
+            print(f"{out} holds this campaign already (the same settings, scenario and "
+                  "seed): its finished episodes are reused", file=sys.stderr)
+        return _run(experiment, episodes, seed, filters, out, resume or same, workers, progress,
                     executor, address)
 
 

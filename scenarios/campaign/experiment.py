@@ -4,6 +4,8 @@ the paper-shaped tables) and the results of its campaign: one ``FilterRun`` per 
 and start, gathered in a ``CampaignResult``; the generic fine-alignment table."""
 from __future__ import annotations
 
+import types
+import typing
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -14,24 +16,173 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.adaptation import OBSERVATION_FEATURES
 from aligngym.estimators.filters import UnknownFilter, filter_entry, filter_names, filter_needs
+from aligngym.estimators.metrics import status_fractions
 from aligngym.estimators.model import FilterModel, StateLayout
 from aligngym.estimators.rules import MAX_POINTS
 from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
-from aligngym.scenarios.config import ConfigError, ScenarioConfig, load_scenario
+from aligngym.scenarios.config import (ConfigError, ScenarioConfig, SettingError,
+                                       load_scenario)
 
 AXES = ("phi_E", "phi_N", "phi_U")
 
 
 def setting(default: Any, doc: str, *, unit: str = "", choices: tuple = (),
-            sweep: bool = False, minimum: float | None = None) -> Any:
-    """A setting of an experiment with its own ``bench`` option, ``--NAME`` (underscores as
-    dashes; every other setting is ``--set NAME=VALUE``): a dataclass field whose
-    metadata holds its doc (the option's help), its unit, the values it takes (choices)
-    or its lower bound (minimum, numbers), and sweep (with choices: the option also takes
-    "all", one campaign per choice, ``Experiment.merge_sweep`` joins their summaries)."""
-    return field(default=default, metadata={"doc": doc, "unit": unit, "choices": tuple(choices),
-                                            "sweep": sweep, "minimum": minimum})
+            sweep: bool = False, low: float | None = None, high: float | None = None,
+            low_open: bool = False, option: bool = True, minimum: float | None = None
+            ) -> Any:
+    """A declared setting of an experiment: a dataclass field whose metadata holds its doc
+    (the option's help), its unit, the values it takes (choices) or its range (numbers, and
+    each number of a tuple: low <= value <= high, low < value with low_open; minimum: an
+    older name of low), and sweep (with choices: the option also takes "all", one campaign
+    per choice, ``Experiment.merge_sweep`` joins their summaries). With option (the
+    default) ``bench`` offers it as ``--NAME`` (underscores as dashes); every setting is
+    also ``--set NAME=VALUE``. ``validate_settings`` checks every value against its field's
+    type and this declaration when the experiment is made."""
+    return field(default=default, metadata={
+        "doc": doc, "unit": unit, "choices": tuple(choices), "sweep": sweep,
+        "low": low if low is not None else minimum, "high": high, "low_open": low_open,
+        "option": option})
+
+
+def bounded(default: Any, unit: str = "", *, low: float | None = None,
+            high: float | None = None, low_open: bool = False, choices: tuple = ()) -> Any:
+    """A setting without an option of its own (``--set NAME=VALUE`` only) with a declared
+    range or choices (see ``setting``)."""
+    return setting(default, "", unit=unit, choices=choices, low=low, high=high,
+                   low_open=low_open, option=False)
+
+
+POSITIVE = {"low": 0.0, "low_open": True}
+"""``bounded(x, "s", **POSITIVE)``: a number > 0."""
+MAX_RUN = 86400.0
+"""s: the longest run a scenario takes (``config.ScenarioConfig.validate``)."""
+
+
+def _whole(ratio: float) -> bool:
+    return abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1
+
+
+def _is_number(value: Any) -> bool:
+    return (isinstance(value, (int, float, np.integer, np.floating))
+            and not isinstance(value, (bool, np.bool_)))
+
+
+def _range_text(meta: dict) -> str:
+    low, high, unit = meta.get("low"), meta.get("high"), meta.get("unit", "")
+    if low is not None and high is not None:
+        text = f" in {'(' if meta.get('low_open') else '['}{low:g}, {high:g}]"
+    elif low is not None:
+        text = f" {'>' if meta.get('low_open') else '>='} {low:g}"
+    elif high is not None:
+        text = f" <= {high:g}"
+    else:
+        text = ""
+    return text + (f" {unit}" if unit and text else "")
+
+
+def _in_range(value: float, meta: dict) -> bool:
+    low, high = meta.get("low"), meta.get("high")
+    if low is not None and not (value > low if meta.get("low_open") else value >= low):
+        return False
+    return high is None or value <= high
+
+
+def _check_value(name: str, value: Any, kind: Any, meta: dict, default: Any) -> Any:
+    """The value, checked against its field's type (kind) and declaration (meta); a list
+    for a tuple becomes a tuple. A SettingError naming the setting otherwise."""
+    optional = False
+    if typing.get_origin(kind) in (types.UnionType, typing.Union):
+        args = typing.get_args(kind)
+        optional = type(None) in args
+        rest = [a for a in args if a is not type(None)]
+        kind = rest[0] if len(rest) == 1 else None
+    if value is None:
+        if optional or kind is None:
+            return value
+        raise SettingError(name, value, f"must be {_expected(kind, meta)}, got none")
+    tail = " or none" if optional else ""
+    choices = meta.get("choices") or ()
+    if choices and value != default and value not in choices:
+        raise SettingError(name, value, f"must be one of {', '.join(map(str, choices))}"
+                                        f"{tail}, got {value!r}")
+    if kind in (float, int):
+        if not _is_number(value) or (kind is int and not float(value).is_integer()):
+            raise SettingError(name, value, f"must be {_expected(kind, meta)}{tail}, "
+                                            f"got {value!r}")
+        if not (np.isfinite(value) and _in_range(float(value), meta)):
+            raise SettingError(name, value, f"must be {_expected(kind, meta)}{tail}, "
+                                            f"got {value!r}")
+        return value
+    if kind in (str, bool):
+        if not isinstance(value, kind):
+            raise SettingError(name, value, f"must be {_expected(kind, meta)}{tail}, "
+                                            f"got {value!r}")
+        return value
+    if typing.get_origin(kind) is tuple:
+        args = typing.get_args(kind)
+        count = None if len(args) == 2 and args[1] is Ellipsis else len(args)
+        item = args[0] if args else None
+        ok = isinstance(value, (tuple, list)) and (count is None or len(value) == count)
+        if ok:
+            try:
+                value = tuple(_check_value(name, v, item, meta, None) for v in value)
+            except Exception:
+                ok = False
+        if not ok:
+            raise SettingError(name, value, f"must be {_expected(kind, meta)}{tail}, "
+                                            f"got {value!r}")
+        return value
+    return value
+
+
+def _expected(kind: Any, meta: dict) -> str:
+    """What a value of this type and declaration must be, in words."""
+    if kind is float:
+        return "a finite number" + _range_text(meta)
+    if kind is int:
+        return "an integer" + _range_text(meta)
+    if kind is str:
+        return "a string"
+    if kind is bool:
+        return "true or false"
+    if typing.get_origin(kind) is tuple:
+        args = typing.get_args(kind)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a list of {_expected(args[0], meta).removeprefix('a ')}s"
+        return f"a list of {len(args)} " + _expected(args[0], meta).removeprefix(
+            "a ").replace("number", "numbers", 1)
+    return "a valid value"
+
+
+def validate_settings(cls: type, experiment: Any) -> None:
+    """Every setting of an experiment (a frozen dataclass) checked, in one place, before
+    any work: its type (a bool or a string is not a number; numbers finite; tuples of the
+    declared length), its declared choices and range (``setting``, ``bounded``), and the
+    filter step against the fine run (0 < filter_step <= fine_duration). A list for a
+    tuple becomes a tuple. Raises the first ``config.SettingError``."""
+    import typing
+    hints = cls.__dict__.get("_setting_types")
+    if hints is None:
+        try:
+            hints = typing.get_type_hints(cls)
+        except Exception:             # an unresolvable annotation: types left unchecked
+            hints = {}
+        cls._setting_types = hints
+    for f in fields(cls):
+        value = getattr(experiment, f.name)
+        checked = _check_value(f.name, value, hints.get(f.name), dict(f.metadata), f.default)
+        if checked is not value:
+            object.__setattr__(experiment, f.name, checked)
+    step = getattr(experiment, "filter_step", None)
+    fine = getattr(experiment, "fine_duration", None)
+    if _is_number(step) and _is_number(fine) and step > fine:
+        defaults = {f.name: f.default for f in fields(cls)}
+        if step == defaults.get("filter_step"):          # name the one that was changed
+            raise SettingError("fine_duration", fine, f"must be >= {{other}} ({step:g} s), "
+                                                      f"got {fine!r}", other="filter_step")
+        raise SettingError("filter_step", step, f"must be <= {{other}} ({fine:g} s), "
+                                                f"got {step!r}", other="fine_duration")
 
 
 class Experiment(ABC):
@@ -72,11 +223,14 @@ class Experiment(ABC):
     reproduce: dict | None = None
     """The claims' campaigns: {"episodes", "seed"} (``aligngym reproduce``)."""
 
+    def __post_init__(self) -> None:
+        validate_settings(type(self), self)
+
     @classmethod
     def flagged_settings(cls) -> list:
         """The settings declared with ``setting`` (their dataclass fields), which ``bench``
         offers as options of their own."""
-        return [f for f in fields(cls) if "doc" in f.metadata]
+        return [f for f in fields(cls) if f.metadata.get("option")]
 
     @classmethod
     def merge_sweep(cls, name: str, summaries: list[dict]) -> dict:
@@ -107,7 +261,19 @@ class Experiment(ABC):
         cached = self.__dict__.get("_scenario_config")
         if cached is not None:
             return cached
-        config = self.scenario_file().with_options(duration=self.duration)
+        try:
+            config = self.scenario_file().with_options(duration=self.duration)
+        except ConfigError as exc:     # the run the settings make: name the fine stage's
+            if getattr(self, "fine_duration", None) is None:
+                raise
+            raise SettingError("fine_duration", self.fine_duration,
+                               f"makes a run of {self.duration:g} s on scenario "
+                               f"{self.scenario_file().name!r}: {exc}") from None
+        step = getattr(self, "filter_step", None)
+        if step is not None and not _whole(step * config.imu_rate):
+            raise SettingError("filter_step", step, "must be a whole number (>= 1) of the "
+                               f"scenario's IMU intervals of {config.imu_interval:g} s, "
+                               f"got {step!r}")
         if config.world not in self.worlds:
             raise ConfigError(f"paper{self.paper} runs on the {' or '.join(self.worlds)} "
                               f"world; scenario {config.name!r} has world = {config.world!r}")
@@ -248,10 +414,17 @@ class FilterRun:
     error_n: np.ndarray        # (B, K+1, 3) rad
     euler_error: np.ndarray    # (B, K+1, 3) rad: body pitch, roll, heading
     nees: np.ndarray           # (B, K+1)
-    diverged: np.ndarray       # (B,)
-    reason: list[str]
+    status: np.ndarray         # (B,) str: ``metrics.STATUSES`` (``metrics.StatusRule``)
+    reason: list[str]          # why each episode has its status ("" if converged)
     heading_convergence: np.ndarray  # (B,) s after the start of fine alignment
     floor: np.ndarray | None = None  # (B, 3) rad: ``Experiment.unmodelled_floor``
+
+    @property
+    def diverged(self) -> np.ndarray:
+        """(B,) the episodes whose status is diverged: the filter broke, or its sigma
+        cannot be trusted (left out of the figures' bands and the report's statistics;
+        a lost episode's error is drawn with the rest)."""
+        return self.status == "diverged"
 
 
 @dataclass
@@ -284,7 +457,8 @@ class CampaignResult:
 
 def fine_summary(result: CampaignResult, window: float | None = None) -> dict:
     """Per filter and start: mean, std, RMS of the final error per axis (arcmin), or of
-    the per-episode RMS over the last ``window`` s, and the fraction diverged."""
+    the per-episode RMS over the last ``window`` s, and the fraction of the episodes in
+    each status (``metrics.status_fractions``)."""
     out: dict[str, dict[str, dict]] = {}
     for run in result.runs:
         if window is None:
@@ -296,8 +470,18 @@ def fine_summary(result: CampaignResult, window: float | None = None) -> dict:
         out.setdefault(run.filter, {})[run.start] = {
             "mean_arcmin": list(final.mean(0)), "std_arcmin": list(final.std(0)),
             "rms_arcmin": list(np.sqrt((final ** 2).mean(0))),
-            "diverged_fraction": float(run.diverged.mean())}
+            **status_fractions(run.status)}
     return out
+
+
+STATUS_HEADER = f"{'conv.':>7s}{'not conv.':>10s}{'diverged':>9s}{'lost':>6s}"
+"""The header of the status columns of a table (docs/estimators.md, "Episode status")."""
+
+
+def status_columns(fractions: dict) -> str:
+    """The percentages of ``metrics.status_fractions`` under ``STATUS_HEADER``."""
+    return (f"{fractions['converged_fraction']:7.0%}{fractions['not_converged_fraction']:10.0%}"
+            f"{fractions['diverged_fraction']:9.0%}{fractions['lost_fraction']:6.0%}")
 
 
 def format_fine_table(result: CampaignResult, start: str, title: str | None = None,
@@ -307,11 +491,11 @@ def format_fine_table(result: CampaignResult, start: str, title: str | None = No
     fine = fine_summary(result)
     lines = [title or f"Fine alignment from the {start} start: final error (arcmin)",
              f"{'filter':9s}{'stat':6s}" + "".join(f"{a:>12s}" for a in AXES)
-             + f"{'diverged':>10s}" + extra_header]
+             + STATUS_HEADER + extra_header]
     for name, per_start in fine.items():
         s = per_start[start]
         for stat in ("mean", "std", "rms"):
-            tail = (f"{s['diverged_fraction']:10.0%}" + (extra or {}).get(name, "")
+            tail = (status_columns(s) + (extra or {}).get(name, "")
                     if stat == "mean" else "")
             lines.append(f"{name if stat == 'mean' else '':9s}{stat:6s}"
                          + "".join(f"{v:12.4f}" for v in s[f"{stat}_arcmin"]) + tail)

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import csv
 import errno
+import hashlib
 import json
 import os
 import socket
 import time
 from contextlib import contextmanager
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Iterator
 
@@ -63,30 +64,65 @@ def campaign_lock(out: Path) -> Iterator[None]:
         os.close(_HELD.pop(out))           # releases the flock
 
 
+def manifest_of(experiment: Experiment, seed: int) -> dict:
+    """What decides a campaign's episodes, as campaign.json holds it: the paper, the
+    experiment's settings, the seed and a hash of the resolved scenario (the file's
+    content with every preset it pulls in: an edited file is another campaign)."""
+    config = repr(replace(experiment.scenario_config(), source=""))   # not where it lies
+    return json.loads(json.dumps({
+        "paper": experiment.paper, "experiment": asdict(experiment), "seed": seed,
+        "scenario_sha256": hashlib.sha256(config.encode()).hexdigest()}))
+
+
+def differences(saved: dict, current: dict) -> list[str]:
+    """The manifest entries that differ ("seed", "experiment.fine_duration", ...)."""
+    out = []
+    for key in sorted(set(saved) | set(current)):
+        a, b = saved.get(key), current.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += [f"{key}.{k}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+        elif a != b:
+            out.append(key if key != "scenario_sha256" else "scenario (its content)" if a
+                       else "scenario (not recorded: a campaign of an older aligngym)")
+    return out
+
+
 def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
-                   force: bool = False, filters: list[str] | None = None) -> None:
+                   force: bool = False, filters: list[str] | None = None) -> bool:
     """Check that out may be used (the caller holds its ``campaign_lock``): a directory
-    holding a campaign needs resume (the same experiment and seed, from its
-    campaign.json, and filters that include every filter of its finished results) or
+    holding a campaign needs resume (the same experiment, scenario content and seed, from
+    its campaign.json, and filters that include every filter of its finished results) or
     force (its episode files, tables, series, plots, settings and report are removed,
-    so nothing of another seed mixes in); then write the manifest."""
+    so nothing of another seed mixes in); then write the manifest. A directory holding
+    this same campaign (the same manifest and filters) is resumed without asking: True
+    is returned then, False otherwise."""
     manifest = out / "campaign.json"
     episodes = [p for p in (out / "episodes").glob("seed_*.npz") if not is_temporary(p)]
     held = manifest.is_file() or bool(episodes)
+    current = manifest_of(experiment, seed)
+    same = False
     if held and not (resume or force):
-        raise ConfigError(f"--out {out} holds a campaign; use --resume to continue it or "
-                          "--force to replace it")
+        saved = _readable_manifest(manifest)
+        if saved is None:
+            raise ConfigError(f"--out {out} holds a campaign whose campaign.json is missing "
+                              "or does not read; use --force to replace it or a new --out")
+        saved.setdefault("paper", current["paper"])
+        same = saved == current
+        if not same:
+            raise ConfigError(f"--out {out} holds another campaign (it differs in "
+                              f"{', '.join(differences(saved, current))}); use --force to "
+                              "replace it or a new --out")
+        resume = True
     if resume and episodes and not manifest.is_file():
         raise ConfigError(f"--resume: {out} has episode files but no campaign.json, so "
                           "their experiment and seed are unknown; use --force to replace them")
-    current = {"paper": experiment.paper, "experiment": asdict(experiment), "seed": seed}
-    current = json.loads(json.dumps(current))
     if resume and manifest.is_file():
         saved = read_manifest(manifest)
         saved.setdefault("paper", current["paper"])
         if saved != current:
-            raise ConfigError(f"--resume: {manifest} was written by a different experiment "
-                              "or seed; use a new --out directory")
+            raise ConfigError(f"--resume: {manifest} was written by a different campaign "
+                              f"(it differs in {', '.join(differences(saved, current))}); "
+                              "use a new --out directory or --force")
         finished = finished_filters(out)
         missing = [f for f in finished if f not in (filters or finished)]
         if missing:
@@ -101,6 +137,16 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
                     out / "settings.json", out / "report.html", manifest]:
             old.unlink(missing_ok=True)
     write_json(manifest, current)
+    return same
+
+
+def _readable_manifest(manifest: Path) -> dict | None:
+    """campaign.json as a dict, or None if it is missing or does not read as one."""
+    try:
+        saved = json.loads(manifest.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return saved if isinstance(saved, dict) else None
 
 
 def read_manifest(manifest: Path) -> dict:

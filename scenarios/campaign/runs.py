@@ -9,17 +9,17 @@ import numpy as np
 
 from aligngym.estimators.alignment import FineResult, run_alignment
 from aligngym.estimators.filters import filter_entry, make_filter
-from aligngym.estimators.metrics import DivergenceRule, convergence_time, euler_error, misalignment
+from aligngym.estimators.metrics import StatusRule, convergence_time, euler_error, misalignment
 from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
 from aligngym.scenarios.campaign.experiment import AXES, Experiment, FilterRun
 
 
 def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],
-                experiment: Experiment, divergence: DivergenceRule = DivergenceRule()
-                ) -> FilterRun:
-    """Errors, body Euler errors, NEES, divergence and convergence time of a run; the
-    divergence judged on the final error less the experiment's ``unmodelled_floor``."""
+                experiment: Experiment, rule: StatusRule = StatusRule()) -> FilterRun:
+    """Errors, body Euler errors, NEES, each episode's status and convergence time of a
+    run; the status judged on the final error less the experiment's ``unmodelled_floor``,
+    with the experiment's heading convergence threshold as its band."""
     K = result.t.size
     C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
     error_n = misalignment(C_true, result.C_s_n)
@@ -27,15 +27,16 @@ def analyse_run(name: str, start: str, result: FineResult, episodes: list[Prepar
     eul = euler_error(np.stack([e.C_b_n_true[:K] for e in episodes]), C_b_n_est)
     floor = experiment.unmodelled_floor(episodes)
     final = error_n[:, -1] if floor is None else error_n[:, -1] - floor
-    diverged, reason = divergence.apply(final, result.sigma_n[:, -1],
-                                        result.diverged, result.diverged_reason)
+    status, reason = rule.apply(final, result.sigma_n[:, -1],
+                                experiment.heading_threshold_arcmin * arcmin,
+                                result.diverged, result.diverged_reason)
     if floor is not None:
         reason = [r.replace("final error", "final error - floor") for r in reason]
     heading = convergence_time(result.t - result.t[0], error_n[:, :, 2],
                                experiment.heading_threshold_arcmin * arcmin)
     return FilterRun(filter=name, start=start, result=result, error_n=error_n,
                      euler_error=eul, nees=experiment.nees(result, episodes, error_n),
-                     diverged=diverged, reason=reason, heading_convergence=heading,
+                     status=status, reason=reason, heading_convergence=heading,
                      floor=floor)
 
 
@@ -142,7 +143,8 @@ def episode_metrics(run: FilterRun, b: int, experiment: Experiment,
         "heading_convergence_s": float(run.heading_convergence[b]),
         "nees_mean": float(np.nanmean(nees)) if np.isfinite(nees).any() else None,
         "nees_final": float(run.nees[b, -1]) if np.isfinite(run.nees[b, -1]) else None,
-        "diverged": bool(run.diverged[b]), "diverged_reason": run.reason[b],
+        "status": str(run.status[b]), "status_reason": run.reason[b],
+        "diverged": bool(run.status[b] == "diverged"),
         "diverged_time_s": float(r.diverged_time[b] - r.t[0]) if r.diverged[b] else None,
         "covariance_repairs": int(r.repairs[b]),
         "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0]})

@@ -21,7 +21,7 @@ import numpy as np
 
 from aligngym.estimators.euler_large import C_p_n, true_state
 from aligngym.estimators.inertial_frame import odometer_aided_alignment, static_coarse_alignment
-from aligngym.estimators.metrics import euler_error, nees
+from aligngym.estimators.metrics import euler_error, nees, status_fractions
 from aligngym.estimators.model import stack_episodes, wrap_angle
 from aligngym.estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
                                        OdometerLargeHeadingModel, OdometerTuning)
@@ -31,6 +31,8 @@ from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.atomic import save_figure
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, setting,
                                          simulate_screened)
+from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded
+from aligngym.scenarios.campaign.experiment import STATUS_HEADER, status_columns
 from aligngym.scenarios.campaign.claims import Claim, ms_per_epoch, rule_points
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
 from aligngym.sensors.imu import ImuTuning
@@ -78,24 +80,25 @@ class Paper000Experiment(Experiment):
     """
 
     scenario: str = "ring-road-odometer"
-    coarse_start: float = 15.0
-    coarse_duration: float = 60.0
-    fine_duration: float | None = None
-    filter_step: float = 1.0
-    attitude_sigma_deg: tuple[float, float, float] = (0.5, 0.5, 30.0)
-    large_heading_deg: float = 30.0
-    velocity_sigma: float = 0.1
-    position_sigma: float = 1.0
-    scale_sigma: float = 0.005
-    mounting_sigma_deg: float | None = 1.0
-    measurement_sigma: float = 0.02
-    feedback_sigma_deg: float | None = 5.0
+    coarse_start: float = bounded(15.0, "s", low=0.0, high=MAX_RUN)
+    coarse_duration: float = bounded(60.0, "s", low=10.0, high=MAX_RUN)
+    fine_duration: float | None = bounded(None, "s", low=0.0, high=MAX_RUN, low_open=True)
+    filter_step: float = bounded(1.0, "s", **POSITIVE)
+    attitude_sigma_deg: tuple[float, float, float] = bounded((0.5, 0.5, 30.0), "deg",
+                                                             **POSITIVE)
+    large_heading_deg: float = bounded(30.0, "deg", low=-180.0, high=180.0)
+    velocity_sigma: float = bounded(0.1, "m/s", **POSITIVE)
+    position_sigma: float = bounded(1.0, "m", **POSITIVE)
+    scale_sigma: float = bounded(0.005, **POSITIVE)
+    mounting_sigma_deg: float | None = bounded(1.0, "deg", low=0.0, high=10.0, low_open=True)
+    measurement_sigma: float = bounded(0.02, "m/s", **POSITIVE)
+    feedback_sigma_deg: float | None = bounded(5.0, "deg", **POSITIVE)
     disturbance: str = setting("none", "odometer slip bursts (slip), and a rough road as "
                                "well (all)", choices=DISTURBANCES)
-    reference_settle: float = 5.0
-    rms_window: float = 60.0
-    heading_threshold_arcmin: float = 10.0
-    start_velocity: str = "drawn"
+    reference_settle: float = bounded(5.0, "s", low=0.0)
+    rms_window: float = bounded(60.0, "s", **POSITIVE)
+    heading_threshold_arcmin: float = bounded(10.0, "arcmin", **POSITIVE)
+    start_velocity: str = bounded("drawn", choices=START_VELOCITIES)
     default_filters: tuple[str, ...] = ("sgkf", "rdghkf", "ckf", "ekf")
     starts: tuple[str, ...] = STARTS
 
@@ -134,8 +137,11 @@ class Paper000Experiment(Experiment):
               {"sgkf heading vs truth RMS '": "fine/sgkf/vs_truth/rms_arcmin/2",
                "rdghkf '": "fine/rdghkf/vs_truth/rms_arcmin/2",
                "sgkf diverged": "fine/sgkf/diverged_fraction",
-               "rdghkf diverged": "fine/rdghkf/diverged_fraction"},
-              lambda n: (n["sgkf diverged"] <= n["rdghkf diverged"]
+               "sgkf lost": "fine/sgkf/lost_fraction",
+               "rdghkf diverged": "fine/rdghkf/diverged_fraction",
+               "rdghkf lost": "fine/rdghkf/lost_fraction"},
+              lambda n: (n["sgkf diverged"] + n["sgkf lost"]
+                         <= n["rdghkf diverged"] + n["rdghkf lost"]
                          and n["sgkf heading vs truth RMS '"] <= 1.05 * n["rdghkf '"]),
               "a 0.5 m slip is a one-epoch outlier (the innovation test flags it), and "
               "strong tracking takes it for a change of state: lambda ~1400 at each burst, "
@@ -441,7 +447,7 @@ def run_metrics(result: CampaignResult, run) -> dict:
     out = {"vs_truth": _stats(vs_truth), "vs_reference": _stats(vs_reference),
            "velocity_error_rms_m_s": np.sqrt(np.nanmean(np.where(
                moving[..., None], v_error ** 2, np.nan), axis=(0, 1))).tolist(),
-           "diverged_fraction": float(run.diverged.mean()),
+           **status_fractions(run.status),
            "dkd_error_ppm": float(np.sqrt(np.mean(dkd_error ** 2)) * 1e6),
            "heading_convergence_s": float(np.mean(run.heading_convergence))}
     if "mounting" in series and x.shape[-1] > MOUNT_PITCH:
@@ -467,7 +473,7 @@ def run_metrics(result: CampaignResult, run) -> dict:
 def paper000_summary(result: CampaignResult) -> dict:
     """{"fine": {FILTER: {"vs_truth": {"mean_arcmin", "std_arcmin", "rms_arcmin"} (pitch,
     roll, heading at the stop), "vs_reference": {...}, "velocity_error_rms_m_s" (E, N, U,
-    over the last 60 s of driving), "diverged_fraction",
+    over the last 60 s of driving), the status fractions (``metrics.status_fractions``),
     "dkd_error_ppm", "heading_convergence_s", "mounting_error_deg" [pitch, heading],
     "flagged_epochs", "slip_bursts_flagged"}}} for the coarse start, and the same under
     "fine_large" for the large-heading start; "coarse": the coarse stage's Euler errors."""
@@ -496,7 +502,7 @@ def format_tables(result: CampaignResult) -> str:
                   f"{'filter':8s}{'stat':6s}" + "".join(f"{'ref ' + a:>12s}" for a in ANGLES)
                   + "".join(f"{'true ' + a:>13s}" for a in ANGLES)
                   + f"{'dK_D ppm':>10s}{'mount deg':>14s}{'v mm/s':>8s}{'flagged':>9s}"
-                  f"{'div':>6s}"]
+                  + STATUS_HEADER]
         for name, s in summary[key].items():
             for stat in ("mean", "std"):
                 tail = ""
@@ -505,7 +511,7 @@ def format_tables(result: CampaignResult) -> str:
                     mount = "-" if mount is None else "/".join(f"{v:.2f}" for v in mount)
                     v = 1000 * np.hypot(*s["velocity_error_rms_m_s"][:2])
                     tail = (f"{s['dkd_error_ppm']:10.0f}{mount:>14s}{v:8.1f}"
-                            f"{s['flagged_epochs']:9.1f}{s['diverged_fraction']:6.0%}")
+                            f"{s['flagged_epochs']:9.1f}" + status_columns(s))
                 lines.append(f"{name if stat == 'mean' else '':8s}{stat:6s}"
                              + "".join(f"{v:12.2f}" for v in s["vs_reference"][f"{stat}_arcmin"])
                              + "".join(f"{v:13.2f}" for v in s["vs_truth"][f"{stat}_arcmin"])

@@ -22,15 +22,17 @@ from aligngym.estimators.inertial_frame import static_coarse_alignment, velocity
 from aligngym.estimators.loose_gps import (ACCEL, GYRO, PHI, POSITION, VELOCITY,
                                   GpsInsInputs, LooselyCoupledModel, LooseTuning, heading_cw,
                                   ins_start_at_fix)
-from aligngym.estimators.metrics import misalignment, nees
+from aligngym.estimators.metrics import misalignment, nees, status_fractions
 from aligngym.estimators.model import stack_episodes, wrap_angle
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.earth import C_n_e, geodetic_to_ecef
 from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, setting,
                                          simulate_screened)
+from aligngym.scenarios.campaign.experiment import STATUS_HEADER, status_columns
 from aligngym.scenarios.campaign.claims import Claim
-from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.scenarios.config import ConfigError, ScenarioConfig, SettingError
+from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded
 from aligngym.sensors.imu import ImuTuning
 
 START = "coarse"
@@ -76,18 +78,19 @@ class Paper001Experiment(Experiment):
     coarse: str = setting("static", "the coarse alignment: static analytic in the first 60 "
                           "s, or GPS-velocity-aided over the first 60 s of motion (the "
                           "filter then starts in motion)", choices=("static", "moving"))
-    coarse_start: float | None = None
-    coarse_duration: float = 60.0
-    fine_duration: float | None = None
-    filter_step: float = 1.0
-    attitude_sigma_deg: tuple[float, float, float] = (0.1, 0.1, 10.0)
-    accel_noise_density: float = 1e-4
-    heading_min_speed: float = 5.0
-    motion_speed: float = 0.5
+    coarse_start: float | None = bounded(None, "s", low=0.0, high=MAX_RUN)
+    coarse_duration: float = bounded(60.0, "s", low=0.0, high=MAX_RUN, low_open=True)
+    fine_duration: float | None = bounded(None, "s", low=0.0, high=MAX_RUN, low_open=True)
+    filter_step: float = bounded(1.0, "s", **POSITIVE)
+    attitude_sigma_deg: tuple[float, float, float] = bounded((0.1, 0.1, 10.0), "deg",
+                                                             **POSITIVE)
+    accel_noise_density: float = bounded(1e-4, "m/s/sqrt(s)", low=0.0)
+    heading_min_speed: float = bounded(5.0, "m/s", low=0.0)
+    motion_speed: float = bounded(0.5, "m/s", low=0.0)
     outage: float = setting(0.0, "a GPS outage of this length in the middle of the motion "
-                            "phase (0: none)", unit="s", minimum=0.0)
-    outage_start: float | None = None
-    turn_rate_deg_s: float = 3.0
+                            "phase (0: none)", unit="s", low=0.0, high=MAX_RUN)
+    outage_start: float | None = bounded(None, "s", low=0.0, high=MAX_RUN)
+    turn_rate_deg_s: float = bounded(3.0, "deg/s", low=0.0)
     heading_point: str = setting("antenna", "the body point whose velocity gives the GPS "
                                  "heading: the antenna (the paper) or the rear axle (no "
                                  "kinematic sideslip)", choices=("antenna", "rear-axle"))
@@ -95,8 +98,8 @@ class Paper001Experiment(Experiment):
                                  "with the kinematic sideslip of the heading point (its "
                                  "distance ahead of the rear axle x yaw rate / speed)",
                                  choices=("eq4", "sideslip"))
-    rms_window: float = 60.0
-    heading_threshold_arcmin: float = 30.0
+    rms_window: float = bounded(60.0, "s", **POSITIVE)
+    heading_threshold_arcmin: float = bounded(30.0, "arcmin", **POSITIVE)
     setup: str = "default"
     default_filters: tuple[str, ...] = SCHEMES
 
@@ -198,8 +201,9 @@ class Paper001Experiment(Experiment):
             raise ConfigError(f"coarse = {self.coarse!r}; valid: " + ", ".join(COARSE))
         if self.coarse == "static" and not 0.0 < self.coarse_duration <= \
                 config.motion.start_time:
-            raise ConfigError(f"coarse_duration = {self.coarse_duration:g} s must be in "
-                              f"(0, {config.motion.start_time:g}] s (the stationary phase)")
+            raise SettingError("coarse_duration", self.coarse_duration,
+                               f"= {self.coarse_duration:g} s must be in "
+                               f"(0, {config.motion.start_time:g}] s (the stationary phase)")
         if self.coarse == "moving":
             start, end = self.coarse_window(config)
             if not (self.coarse_duration >= 3.0 / config.gps.rate
@@ -214,8 +218,8 @@ class Paper001Experiment(Experiment):
         fix = 1.0 / config.gps.rate
         ratio = self.filter_step / fix
         if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
-            raise ConfigError(f"filter_step = {self.filter_step:g} s must be a multiple of "
-                              f"the GPS interval {fix:g} s")
+            raise SettingError("filter_step", self.filter_step, f"= {self.filter_step:g} s "
+                               f"must be a multiple of the GPS interval {fix:g} s")
         if not (np.isfinite(self.heading_min_speed) and self.heading_min_speed >= 0.0):
             raise ConfigError(f"heading_min_speed = {self.heading_min_speed:g} m/s must be "
                               ">= 0")
@@ -230,9 +234,9 @@ class Paper001Experiment(Experiment):
             start, end = self.outage_window(config)
             first = self.coarse_window(config)[1]
             if not (first < start and end < config.duration):
-                raise ConfigError(f"--outage {self.outage:g} s: the window [{start:g}, "
-                                  f"{end:g}] s must lie inside the filter's run "
-                                  f"({first:g}, {config.duration:g}) s")
+                raise SettingError("outage", self.outage, f"{self.outage:g} s: the window "
+                                   f"[{start:g}, {end:g}] s must lie inside the filter's run "
+                                   f"({first:g}, {config.duration:g}) s")
 
     def tuning(self, config: ScenarioConfig, heading: bool = True) -> LooseTuning:
         imu = ImuTuning.from_spec(config.imu)
@@ -465,7 +469,7 @@ def scheme_metrics(result: CampaignResult, run) -> dict:
         "heading_gps_difference_straight_deg": float(
             _masked_rms(heading_diff, moving & ~turning) / deg),
         "nees_mean": float(_finite_mean(np.where(moving, run.nees, np.nan)[:, 1:])),
-        "diverged_fraction": float(run.diverged.mean())}
+        **status_fractions(run.status)}
 
 
 def outage_metrics(result: CampaignResult, run) -> dict | None:
@@ -548,7 +552,7 @@ def paper001_summary(result: CampaignResult) -> dict:
     {pos, vel} over lckf, pos_error_rms_m, vel_error_rms_m_s [3] against the truth,
     heading_rms_deg, attitude_rms_arcmin [pitch, roll, heading], heading_gps_difference
     _turns_deg / _straight_deg (INS heading - GPS heading), nees_mean (in motion),
-    diverged_fraction (whole run), outage {...}, outliers [...]}}}."""
+    the status fractions (``metrics.status_fractions``), outage {...}, outliers [...]}}}."""
     schemes = {run.filter: scheme_metrics(result, run) for run in result.runs}
     classic = schemes.get("lckf")
     for run in result.runs:
@@ -584,14 +588,14 @@ def format_tables(result: CampaignResult) -> str:
               "arcmin; heading - GPS heading (deg) in turns / straights",
               f"{'scheme':8s}{'pos E':>8s}{'pos N':>8s}{'pos U':>8s}{'vel E':>8s}{'vel N':>8s}"
               f"{'vel U':>8s}{'pitch':>8s}{'roll':>8s}{'head':>8s}{'turns':>8s}{'straight':>9s}"
-              f"{'NEES':>7s}{'div':>6s}"]
+              f"{'NEES':>7s}" + STATUS_HEADER]
     for name, s in summary.items():
         lines.append(f"{name:8s}" + "".join(f"{100 * v:8.2f}" for v in s["pos_error_rms_m"])
                      + "".join(f"{1000 * v:8.2f}" for v in s["vel_error_rms_m_s"])
                      + "".join(f"{v:8.2f}" for v in s["attitude_rms_arcmin"])
                      + f"{s['heading_gps_difference_turns_deg']:8.3f}"
                      + f"{s['heading_gps_difference_straight_deg']:9.3f}"
-                     + f"{s['nees_mean']:7.1f}{s['diverged_fraction']:6.0%}")
+                     + f"{s['nees_mean']:7.1f}" + status_columns(s))
     if any("outage" in s for s in summary.values()):
         lines += ["", "GPS outage, at its last epoch: horizontal error (m), the filter's "
                   "3-sigma (m); re-convergence after it (s)"]

@@ -29,6 +29,7 @@ from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpi
                                 fine_summary, format_fine_table, simulate_screened)
 from aligngym.scenarios.campaign.claims import Claim, final_from_static_floor, rule_points
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
+from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded
 
 START = "large-azimuth"
 STATE_COUNT = 10
@@ -52,14 +53,14 @@ class Paper002Experiment(Experiment):
     """
 
     scenario: str = "static-large-azimuth"
-    fine_duration: float = 600.0
-    filter_step: float = 1.0
-    azimuth_error_deg: float = 58.5
-    level_error_sigma_deg: float = 1.0
-    gyro_bias_prior_deg_h: float = 0.1
-    feedback_sigma_deg: float | None = 5.0
-    rms_window: float = 60.0
-    heading_threshold_arcmin: float = 60.0
+    fine_duration: float = bounded(600.0, "s", low=0.0, high=MAX_RUN, low_open=True)
+    filter_step: float = bounded(1.0, "s", **POSITIVE)
+    azimuth_error_deg: float = bounded(58.5, "deg", low=-180.0, high=180.0)
+    level_error_sigma_deg: float = bounded(1.0, "deg", low=0.0, high=90.0)
+    gyro_bias_prior_deg_h: float = bounded(0.1, "deg/h", **POSITIVE)
+    feedback_sigma_deg: float | None = bounded(5.0, "deg", **POSITIVE)
+    rms_window: float = bounded(60.0, "s", **POSITIVE)
+    heading_threshold_arcmin: float = bounded(60.0, "arcmin", **POSITIVE)
 
     paper = "002"
     default_episodes = 100
@@ -276,7 +277,7 @@ def point_count(name: str) -> int:
 
 
 def paper002_summary(result: CampaignResult) -> dict:
-    """{FILTER: {mean/std/rms_arcmin [3], diverged_fraction, convergence_s, points,
+    """{FILTER: {mean/std/rms_arcmin [3], the status fractions, convergence_s, points,
     us_per_epoch}} (the JSON's "fine" entry): final errors after the fine duration."""
     fine = fine_summary(result)
     out = {}
