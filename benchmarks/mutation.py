@@ -5,7 +5,9 @@ comparison, a number, a boolean, a loop) and the fast tests named for it run aga
 each mutant; a mutant the tests pass is a survivor. Writes, under --out:
 ``NAME.toml`` and ``NAME.sqlite`` (cosmic-ray's config and session, resumable: a second
 run continues where the first stopped), ``report.json`` and ``report.md`` (per target:
-mutants, killed, survivors with their diff, the equivalent ones with their reason).
+mutants, killed, survivors with their diff, the equivalent ones with their reason) and
+``checks.md`` (the table and the equivalent survivors by reason: docs/checks.md's
+section).
 
 Why cosmic-ray: it mutates the checkout's files in place and restores them, so the
 tests import the mutant through the editable install of this checkout (the package-dir
@@ -268,6 +270,38 @@ def write_report(rows: list[dict], out: Path) -> None:
                                                if s["equivalent"] else ""),
                       "```diff", s["diff"].strip(), "```"]
     (out / "report.md").write_text("\n".join(lines) + "\n")
+    (out / "checks.md").write_text(checks_section(rows))
+
+
+def checks_section(rows: list[dict]) -> str:
+    """The docs/checks.md section: the table, then the equivalent survivors grouped by
+    their reason (module:line of each), then any survivor not yet killed."""
+    lines = ["| module | mutants | killed | equivalent | other survivors | kill rate "
+             "(non-equivalent) |", "|---|---|---|---|---|---|"]
+    total = {"mutants": 0, "killed": 0, "equivalent": 0, "other": 0}
+    for r in rows:
+        other = r["survived"] - r["equivalent"]
+        rate = ("-" if r["kill_rate_non_equivalent"] is None
+                else f"{100 * r['kill_rate_non_equivalent']:.1f} %")
+        lines.append(f"| `{r['module']}` | {r['mutants']} | {r['killed']} | "
+                     f"{r['equivalent']} | {other} | {rate} |")
+        for k, v in (("mutants", r["mutants"]), ("killed", r["killed"]),
+                     ("equivalent", r["equivalent"]), ("other", other)):
+            total[k] += v
+    competent = total["killed"] + total["other"]
+    lines.append(f"| all | {total['mutants']} | {total['killed']} | {total['equivalent']} | "
+                 f"{total['other']} | {100 * total['killed'] / max(competent, 1):.1f} % |")
+    reasons: dict[str, list[str]] = {}
+    for r in rows:
+        for sv in r["survivors"]:
+            where = sv["key"].split(": ", 1)[0]
+            reasons.setdefault(sv["equivalent"] or "NOT KILLED: " + sv["key"], []).append(
+                where)
+    lines += ["", "Equivalent survivors, by reason (module:line of each mutant):", ""]
+    for reason, where in sorted(reasons.items(), key=lambda kv: -len(kv[1])):
+        places = ", ".join(sorted(set(where)))
+        lines.append(f"- {reason} ({len(where)}: {places})")
+    return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:

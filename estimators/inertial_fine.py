@@ -93,7 +93,7 @@ def fine_inputs(integrals: BodyFrameIntegrals, t1: float, duration: float,
     per_step = int(round(step / dt))
     if per_step < 1 or abs(per_step * dt - step) > 1e-9:
         raise ValueError(f"filter step {step} s must be a whole number of IMU intervals")
-    K = int(round(duration / step))
+    K = int(np.floor(duration / step + 1e-9))       # whole steps (5 s in 0.3 s: 16)
     idx = int(round(t1 / dt)) + per_step * np.arange(K + 1)
     if idx[-1] >= t.size:
         raise ValueError(f"the data end at {t[-1]:g} s, before t1 + duration = "

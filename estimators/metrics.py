@@ -25,8 +25,12 @@ def euler_error(C_b_n_true: np.ndarray, C_b_n_est: np.ndarray) -> np.ndarray:
 
 
 def convergence_time(t: np.ndarray, error: np.ndarray, threshold: float) -> np.ndarray:
-    """First time (B,) after which |error| (B, K) stays within threshold; t[-1] if never."""
-    outside = np.abs(error) > threshold
+    """First time (B,) after which |error| (B, K) stays within threshold; t[-1] if never.
+    A non-finite error (NaN, inf) is outside any band: an episode whose error is NaN at
+    its last epoch never converged (t[-1]: the run's end, a time censored there, so that
+    means and percentiles over episodes stay defined and a broken filter counts as the
+    slowest, never as converged at once)."""
+    outside = ~(np.abs(error) <= threshold)     # NaN <= threshold is False: outside
     last_out = np.where(outside.any(axis=1), outside.shape[1] - 1 - np.argmax(
         outside[:, ::-1], axis=1), -1)
     idx = np.minimum(last_out + 1, t.size - 1)

@@ -161,8 +161,8 @@ def weighted_moments(y: np.ndarray, dx: np.ndarray, wm: np.ndarray, wc: np.ndarr
 
 def _sqrt_psd(P: np.ndarray) -> np.ndarray:
     """Lower Cholesky factor (B, n, n); an episode whose P is not positive definite (the
-    filter has flagged it) gets the symmetric square root of its eigenvalue-floored
-    matrix, without changing the other episodes' factors."""
+    filter has flagged it) gets the square root V sqrt(max(D, 0)) of its eigenvalue-
+    floored matrix (NaN entries as 0), without changing the other episodes' factors."""
     try:
         return np.linalg.cholesky(P)
     except np.linalg.LinAlgError:
@@ -259,9 +259,6 @@ class SparseGridGaussHermiteRule(SigmaPointRule):
         self.level, self.growth = level, growth
         self.has_negative_weights = level >= 2
         self.name = f"sparse-grid-gauss-hermite(L={level}, {growth})"
-
-    def _m(self, l: int) -> int:
-        return 2 * l - 1 if self.growth == "odd" else l
 
     def _points(self, n):
         return _smolyak(n, self.level, self.growth)

@@ -7,6 +7,7 @@ temporary file."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import uuid
 from contextlib import contextmanager
@@ -53,9 +54,30 @@ def write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
+def strict_json_value(value: Any) -> Any:
+    """value with every non-finite number (NaN, inf; Python or NumPy) as None (JSON
+    null), NumPy scalars and arrays as Python numbers and lists, tuples as lists: what
+    ``json.dumps(..., allow_nan=False)`` accepts (strict JSON has no NaN or Infinity)."""
+    if isinstance(value, dict):
+        return {k: strict_json_value(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict_json_value(v) for v in value]
+    if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):   # NumPy
+        return strict_json_value(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def json_text(value: Any, **options: Any) -> str:
+    """Strict JSON of value (``strict_json_value``: non-finite numbers are null)."""
+    return json.dumps(strict_json_value(value), allow_nan=False, **options)
+
+
 def write_json(path: str | Path, value: Any) -> Path:
-    """Write value as indented JSON to path atomically; returns path."""
-    return write_text(path, json.dumps(value, indent=2))
+    """Write value as indented strict JSON to path atomically (NaN and inf as null,
+    ``json_text``); returns path."""
+    return write_text(path, json_text(value, indent=2))
 
 
 def is_temporary(path: Path) -> bool:

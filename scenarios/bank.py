@@ -107,6 +107,39 @@ def bank_directory(root: str | Path, key: dict) -> Path:
     return Path(root) / name
 
 
+BANK_SCHEMA = 1
+"""The layout of a bank (bank.json's "schema"; a bank.json without one is of this
+layout): a bank.json of another schema is refused (docs/campaign-directory.md)."""
+
+
+def check_bank_manifest(manifest: Path, data: bytes, key: dict) -> None:
+    """Refuse, in one line naming the file, a bank.json that does not read (not UTF-8, not
+    JSON, not an object), of another schema, or not this experiment's key (a copied or
+    foreign file)."""
+    directory = manifest.parent
+    fix = (f"delete {directory} (its episodes are simulated again) or use another bank "
+           "directory")
+    try:
+        saved = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        reason = (f"not UTF-8 (byte {exc.start})" if isinstance(exc, UnicodeDecodeError)
+                  else f"not valid JSON ({exc.msg} at line {exc.lineno})")
+        raise ConfigError(f"bank {manifest} is {reason}, a damaged file; {fix}") from None
+    if not isinstance(saved, dict):
+        raise ConfigError(f"bank {manifest} holds a JSON {type(saved).__name__}, not the "
+                          f"bank's key (a foreign file); {fix}")
+    schema = saved.pop("schema", BANK_SCHEMA)
+    if schema != BANK_SCHEMA:
+        raise ConfigError(f"bank {manifest}: its schema {schema!r} is not this aligngym's "
+                          f"({BANK_SCHEMA}); use the aligngym that wrote it, or another "
+                          "bank directory")
+    if saved != key:
+        differ = sorted(k for k in set(saved) | set(key) if saved.get(k) != key.get(k))
+        raise ConfigError(f"bank {manifest} is not this experiment's key (it differs in "
+                          f"{', '.join(differ)[:120]}: a copied, damaged or foreign file); "
+                          f"{fix}")
+
+
 class EpisodeBank:
     """Prepared episodes of one experiment under ``root`` (see the module docstring):
     ``get(seed)`` loads the episode, or simulates and stores it."""
@@ -121,17 +154,16 @@ class EpisodeBank:
         try:
             self.episodes.mkdir(parents=True, exist_ok=True)
             if not manifest.is_file():
-                write_json(manifest, key)
-            saved = json.loads(manifest.read_text())
+                write_json(manifest, {**key, "schema": BANK_SCHEMA})
         except OSError as exc:
             raise ConfigError(f"bank {root}: cannot create {self.episodes} "
                               f"({exc.strerror})") from None
-        except json.JSONDecodeError:
-            saved = None
-        if saved != key:
-            raise ConfigError(f"bank {self.directory}: its bank.json is not this "
-                              "experiment's key (a copied or damaged bank); use another "
-                              "bank directory")
+        try:
+            data = manifest.read_bytes()
+        except OSError as exc:
+            raise ConfigError(f"bank {manifest} cannot be read ({exc.strerror}); delete "
+                              f"{self.directory} or use another bank directory") from None
+        check_bank_manifest(manifest, data, key)
 
     def path(self, seed: int) -> Path:
         return self.episodes / f"seed_{seed}.npz"

@@ -58,9 +58,12 @@ def _bench_epilog(experiment: type | None) -> str:
     """What ``bench --help`` lists besides the options: the experiments, the filters and
     the scenarios with a pipeline; with an experiment, its other settings (--set)."""
     from aligngym.estimators.filters import filter_names
+    from aligngym.scenarios.experiments import setup_for
     lines = ["experiments: " + ", ".join(experiment_names()), "filters: " + ", ".join(filter_names()),
              "scenarios with a pipeline: "
-             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))]
+             + ", ".join(f"{s} ({p})" for s, p in sorted(SCENARIO_PAPER.items()))
+             + "".join(f", {s} ({named[0]} --setup {named[1]})" for s in scenario_names()
+                       if s not in SCENARIO_PAPER and (named := setup_for(s)))]
     if experiment is not None:
         flagged = {f.name for f in experiment.flagged_settings()}
         lines.append("--set NAME=VALUE settings (default): " + ", ".join(
@@ -348,6 +351,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from aligngym.scenarios.campaign import run_campaign
+    from aligngym.scenarios.campaign.engine import check_campaign_memory
     from aligngym.scenarios.config import ConfigError
     from aligngym.scenarios.experiments import experiment, experiment_class
     from aligngym.scenarios.report import format_tables, write_outputs
@@ -371,6 +375,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             raise ConfigError("--filters is empty; give at least one filter name")
         exp.check(exp.scenario_config())
         exp.check_filters(filters)
+        check_campaign_memory(exp, episodes, filters)   # before --out is created
         experiments.append((level, exp, filters))
     if args.json:
         _check_writable(args.json, "--json")
@@ -536,6 +541,14 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     if unknown or not papers:
         raise ConfigError(f"reproduce: unknown paper {(unknown or [args.papers])[0]!r}; "
                           "valid: all, " + ", ".join(names))
+    if args.episodes is not None:        # every claim campaign held, before --out is made
+        from aligngym.scenarios.campaign.engine import check_campaign_memory
+        from aligngym.scenarios.experiments import experiment, experiment_class
+        for paper in papers:
+            for claim in experiment_class(paper).claims:
+                exp = experiment(paper, claim.setup, **claim.settings)
+                check_campaign_memory(exp, args.episodes,
+                                      list(claim.filters) or list(exp.default_filters))
     if args.out:
         _check_writable(str(Path(args.out) / "claims.md"), "--out")
     _, text = reproduce(papers, episodes=args.episodes, seed=args.seed,
@@ -548,7 +561,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 def _cmd_bank(args: argparse.Namespace) -> int:
     import os
 
-    from aligngym.scenarios.bank import EpisodeBank, split_seeds
+    from aligngym.scenarios.bank import EpisodeBank, check_split, split_seeds
+    from aligngym.scenarios.campaign.engine import check_seed_memory
     from aligngym.scenarios.config import load_scenario
     from aligngym.scenarios.experiments import env_experiment, experiment_class
 
@@ -557,6 +571,9 @@ def _cmd_bank(args: argparse.Namespace) -> int:
     args.setting_labels = {"fine_duration": "--episode-length", "filter_step": "--epoch-length"}
     settings = _settings_of(experiment_class(config.experiment), args) if (
         config.experiment and args.set) else {}
+    lo, hi = check_split(args.split)
+    if args.first + args.episodes <= hi - lo:     # a seed list the machine can hold
+        check_seed_memory(args.episodes)
     seeds = split_seeds(args.split, args.episodes, args.first)
     experiment = env_experiment(args.scenario, args.episode_length, args.epoch_length,
                                 settings, config=config)

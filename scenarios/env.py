@@ -104,6 +104,15 @@ REWARD_CAP = 100.0
 REWARDS = ("attitude", "log", "final")
 
 
+def episode_step_count(episode_length: float, epoch_length: float) -> int:
+    """Steps (filter epochs) of an episode: the whole epochs of epoch_length s within
+    episode_length s (floor: an epoch that would end after the episode's data is not
+    stepped; 5 s in 0.3-s epochs is 16 steps, to 4.8 s), with a tolerance of 1e-9 of an
+    epoch for float rounding (0.3 s in 0.1-s epochs is 3, though 0.3 / 0.1 < 3). The one
+    count the env's ``episode_steps`` and its truncation use (single and vector)."""
+    return int(np.floor(episode_length / epoch_length + 1e-9))
+
+
 class EnvCore:
     """What the single and the vector env share: the experiment, the spaces, the
     mistuning, the episode cache and bank, the seed split and the reset options."""
@@ -252,8 +261,9 @@ class EnvCore:
 
     @property
     def episode_steps(self) -> int:
-        """Steps (filter epochs) of an episode: episode_length / epoch_length."""
-        return int(round(self.experiment.fine_duration / self.experiment.filter_step))
+        """Steps (filter epochs) of an episode: ``episode_step_count`` of
+        episode_length and epoch_length; the episode is truncated after them."""
+        return episode_step_count(self.experiment.fine_duration, self.experiment.filter_step)
 
     def _checked_actions(self, actions, batch: tuple[int, ...]) -> np.ndarray:
         """actions (batch + action shape) as floats clipped to [-1, 1]; a wrong shape or
@@ -285,6 +295,13 @@ class Cohort:
         self.observed = experiment.observed_states(self.run.model.layout)
         self.ended = np.zeros(self.run.batch, bool)
         """Members whose episode has ended (their metrics given once)."""
+        self.steps = env.episode_steps
+        """Steps after which the members are truncated (``episode_step_count``)."""
+        if self.run.epochs < self.steps:       # the prepared data hold fewer epochs
+            raise ConfigError(f"the episodes hold {self.run.epochs} epochs of "
+                              f"epoch_length = {experiment.filter_step:g} s, fewer than the "
+                              f"{self.steps} steps of episode_length = "
+                              f"{experiment.fine_duration:g} s")
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                  np.ndarray, list[dict]]:
@@ -300,10 +317,10 @@ class Cohort:
         errors = self.attitude_errors()
         diverged = run.filt.health.diverged.copy()
         terminated = diverged
-        truncated = np.full(run.batch, run.done) & ~diverged
+        truncated = np.full(run.batch, run.k >= self.steps) & ~diverged
         over = (terminated | truncated) & ~self.ended     # ending at this step
         rewards = env.rewards(errors, terminated | truncated, terminated & over,
-                              run.epochs - run.k)
+                              self.steps - run.k)
         self.ended |= over
         time_s = float(run.t[run.k] - run.t[0])
         infos = [{"error_arcmin": errors[b] / arcmin, "time_s": time_s,
@@ -340,7 +357,7 @@ class Cohort:
                 if f.size > 3:      # more than three (001's weights): the smallest three
                     f = np.sort(f)[:3]
                 obs[b, FACTORS.start:FACTORS.start + f.size] = np.log10(np.maximum(f, 1e-3))
-        obs[:, ELAPSED] = run.k / run.epochs
+        obs[:, ELAPSED] = run.k / self.steps
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def attitude_errors(self) -> np.ndarray:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import base64
 import csv
+import io
 import json
 from html import escape
 from pathlib import Path
@@ -105,16 +106,130 @@ def _anchor(name: str) -> str:
     return "campaign-" + "".join(c if c.isalnum() else "-" for c in name)
 
 
+SCHEMA = 1
+"""The layout of the campaign files this version writes and reads; a settings.json or
+summary.json carrying another "schema" (a later aligngym's) is refused, one without one
+is read as this layout (docs/campaign-directory.md)."""
+
+
+def _again(path: Path) -> str:
+    """What to do about a damaged or foreign file of a campaign directory."""
+    return (f"write it again with the campaign's 'aligngym bench ... --out {path.parent} "
+            "--resume' (settings.json holds its command line), or delete the directory "
+            "and run the campaign anew")
+
+
+def _refuse(path: Path, problem: str) -> ConfigError:
+    return ConfigError(f"report {path}: {problem}; {_again(path)}")
+
+
+def _read_text(path: Path) -> str:
+    """A text file of the directory, UTF-8; one line naming it when it does not read."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise _refuse(path, f"cannot be read ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _refuse(path, f"is not UTF-8 text (byte {exc.start}), a damaged or "
+                      "foreign file") from None
+    if "\0" in text:
+        raise _refuse(path, "holds NUL bytes, a damaged or foreign file")
+    if not text.strip():
+        raise _refuse(path, "is empty")
+    return text
+
+
+def _read_json(path: Path) -> dict:
+    """A JSON object of the directory (settings.json, summary.json), its "schema" this
+    version's or none; one line naming it otherwise."""
+    try:
+        value = json.loads(_read_text(path))
+    except json.JSONDecodeError as exc:
+        raise _refuse(path, f"is not valid JSON ({exc.msg} at line {exc.lineno}), a "
+                      "damaged or truncated file") from None
+    if not isinstance(value, dict):
+        raise _refuse(path, f"holds a JSON {type(value).__name__}, not an object, a "
+                      "foreign file")
+    schema = value.get("schema", SCHEMA)
+    if schema != SCHEMA:
+        raise ConfigError(f"report {path}: its schema {schema!r} is not this aligngym's "
+                          f"({SCHEMA}); report it with the aligngym that wrote it, or "
+                          f"re-run the campaign into a new --out")
+    return value
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_list_of(value, kind) -> bool:
+    return isinstance(value, list) and all(isinstance(v, kind) for v in value)
+
+
+SETTINGS_TYPES = {
+    "paper": (str,), "scenario": (str,), "experiment": (dict,),
+    "scenario_file": (str,), "scenario_toml": (str,), "seed": (int, type(None)),
+    "episodes": (int,), "seeds": (list,), "filters": (list,), "starts": (list,),
+    "nees_dof": (int, type(None)), "command": (list, type(None)), "platform": (str,),
+    "versions": (dict,), "written_utc": (str,)}
+"""settings.json's keys (``report.campaign_settings``) and their JSON types; the first
+three are required."""
+
+
 def _read_settings(directory: Path) -> dict:
     path = directory / "settings.json"
-    try:
-        settings = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"report {path}: not a readable settings file ({exc})") from None
-    for key in ("paper", "scenario", "experiment"):
+    settings = _read_json(path)
+    for key, types in SETTINGS_TYPES.items():
         if key not in settings:
-            raise ConfigError(f"report {path}: missing key {key!r}")
+            if key in ("paper", "scenario", "experiment"):
+                raise _refuse(path, f"has no {key!r}: not a campaign's settings file")
+            continue
+        value = settings[key]
+        if not isinstance(value, types) or isinstance(value, bool):
+            raise _refuse(path, f"{key!r} is a {type(value).__name__}, not a "
+                          f"{' or '.join(t.__name__ for t in types).replace('NoneType', 'null')}")
+    for key in ("filters", "starts"):
+        if not _is_list_of(settings.get(key, []), str):
+            raise _refuse(path, f"{key!r} is not a list of names")
     return settings
+
+
+def _read_summary(path: Path) -> dict:
+    """summary.json, with the parts the report shows checked: "data_faults" (required)
+    and "nees_band" (from issue 46 on)."""
+    summary = _read_json(path)
+    faults = summary.get("data_faults")
+    if not isinstance(faults, dict):
+        raise _refuse(path, "has no \"data_faults\" object: not a campaign's summary")
+    if not (isinstance(faults.get("flagged_episodes"), int)
+            and isinstance(faults.get("episodes"), int)
+            and isinstance(faults.get("by_kind", {}), dict)
+            and all(isinstance(n, int) for n in faults.get("by_kind", {}).values())):
+        raise _refuse(path, "\"data_faults\" does not hold counts (flagged_episodes, "
+                      "episodes, by_kind)")
+    bands = summary.get("nees_band", {})
+    entries = ([e for per in bands.values() if isinstance(per, dict) for e in per.values()]
+               if isinstance(bands, dict) else None)
+    if (entries is None or not all(isinstance(per, dict) for per in bands.values())
+            or not all(_nees_entry_ok(e) for e in entries)):
+        raise _refuse(path, "\"nees_band\" is not {filter: {start: band entry}}")
+    return summary
+
+
+def _nees_entry_ok(entry) -> bool:
+    if not isinstance(entry, dict):
+        return False
+    band = entry.get("band")
+    optional = ("fraction_of_epochs_above", "fraction_of_epochs_below",
+                "first_time_outside_s")
+    number = lambda v: v is None or _is_number(v)  # noqa: E731  (null: not finite)
+    return ((band is None or (isinstance(band, list) and len(band) in (0, 2)
+                              and all(number(b) for b in band)))
+            and number(entry.get("probability", 0.95))
+            and all(entry.get(k) is None or _is_number(entry[k]) for k in optional)
+            and isinstance(entry.get("text", ""), str))
 
 
 def _campaign_section(directory: Path, name: str) -> str:
@@ -130,7 +245,7 @@ def _campaign_section(directory: Path, name: str) -> str:
                   f"<details><summary>{escape(str(settings.get('scenario_file', '')))}"
                   f"</summary><pre>{escape(settings['scenario_toml'])}</pre></details>"]
     parts += ["<h3>Paper-shaped tables</h3>",
-              f"<pre class=\"tables\">{escape((directory / 'tables.txt').read_text())}</pre>",
+              f"<pre class=\"tables\">{escape(_read_text(directory / 'tables.txt'))}</pre>",
               "<h3>Results by filter and start</h3>",
               "<p class=\"note\">From results.csv (one row per episode, filter and start); "
               "final errors and NEES over the episodes not diverged: median, and in "
@@ -141,7 +256,9 @@ def _campaign_section(directory: Path, name: str) -> str:
         parts += ["<h3>Coarse alignment error per episode</h3>",
                   "<details><summary>coarse.csv</summary>"
                   + _csv_table(directory / "coarse.csv") + "</details>"]
-    nees_band = _nees_band(directory / "summary.json")
+    summary = (_read_summary(directory / "summary.json")
+               if (directory / "summary.json").is_file() else {})
+    nees_band = _nees_band(summary)
     if nees_band:
         parts += ["<h3>Mean NEES against its band</h3>",
                   "<p class=\"note\">From summary.json (\"nees_band\"): per filter and start, "
@@ -149,7 +266,7 @@ def _campaign_section(directory: Path, name: str) -> str:
                   "two-sided chi-square band of a mean of that many consistent episodes "
                   "(chi-square(episodes x states) / episodes), as the NEES figure's strips "
                   "mark them.</p>", nees_band]
-    faults = _faults(directory / "summary.json")
+    faults = _faults(summary) if summary else ""
     if faults:
         parts += ["<h3>Data faults flagged</h3>", f"<p>{escape(faults)}</p>"]
     parts += ["<h3>Figures</h3>"]
@@ -189,13 +306,62 @@ def _number(text: str) -> float:
         return float("nan")
 
 
+RESULTS_NUMBERS = ("final_phi_E_arcmin", "final_phi_N_arcmin", "final_phi_U_arcmin",
+                   "heading_convergence_s", "nees_mean", "covariance_repairs",
+                   "ms_per_epoch")
+"""results.csv's columns the report reads as numbers (empty, nan and inf allowed); it
+needs them, "filter", "start" and "diverged" ("status": from issue 46 on)."""
+
+
+def _read_results(path: Path) -> list[dict]:
+    """results.csv's rows, checked: the columns the report reads, one field per column
+    in every row, numbers where numbers go, a known status; one line naming the file and
+    the first row at fault otherwise."""
+    try:
+        rows = list(csv.reader(io.StringIO(_read_text(path), newline="")))
+    except csv.Error as exc:
+        raise _refuse(path, f"is not CSV ({exc})") from None
+    header, body = rows[0], rows[1:]
+    missing = [c for c in ("filter", "start", "diverged", *RESULTS_NUMBERS) if c not in header]
+    if missing:
+        raise _refuse(path, f"has no column {missing[0]!r}: not a campaign's results table")
+    if not body:
+        raise _refuse(path, "has no rows (a truncated file)")
+    out = []
+    for number, row in enumerate(body, start=2):
+        if len(row) != len(header):
+            raise _refuse(path, f"line {number} has {len(row)} fields, the header "
+                          f"{len(header)} (a truncated or damaged file)")
+        entry = dict(zip(header, row))
+        bad = next((c for c in RESULTS_NUMBERS if entry[c] not in ("", *_NUMBERLESS)
+                    and not _parses(entry[c])), None)
+        if bad is not None:
+            raise _refuse(path, f"line {number}: {bad} = {entry[bad][:20]!r} is not a number")
+        if entry.get("status", "") not in ("", *STATUSES) or entry["diverged"] not in (
+                "True", "False"):
+            raise _refuse(path, f"line {number}: status {entry.get('status', '')[:20]!r} or "
+                          f"diverged {entry['diverged'][:20]!r} is not one the campaign writes")
+        out.append(entry)
+    return out
+
+
+_NUMBERLESS = ("nan", "inf", "-inf")
+
+
+def _parses(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _results_summary(path: Path) -> str:
     """Per (filter, start): episodes, how many in each status (converged, not converged,
     diverged, lost: docs/estimators.md), |final error| E, N, U median [p95] and heading
     convergence median [p90] (s), NEES mean (median over episodes), covariance repairs,
     ms per epoch; over the episodes not diverged."""
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+    rows = _read_results(path)
     groups: dict[tuple[str, str], list[dict]] = {}
     for row in rows:
         groups.setdefault((row["filter"], row["start"]), []).append(row)
@@ -236,8 +402,10 @@ def _results_summary(path: Path) -> str:
 
 
 def _csv_table(path: Path) -> str:
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
+    try:
+        rows = list(csv.reader(io.StringIO(_read_text(path), newline="")))
+    except csv.Error as exc:
+        raise _refuse(path, f"is not CSV ({exc})") from None
     if not rows:
         return "<p>(empty)</p>"
     return ("<table><tr>" + "".join(f"<th>{escape(h)}</th>" for h in rows[0]) + "</tr>"
@@ -245,15 +413,10 @@ def _csv_table(path: Path) -> str:
                       + "</tr>" for row in rows[1:]) + "</table>")
 
 
-def _nees_band(path: Path) -> str:
+def _nees_band(summary: dict) -> str:
     """A table, per filter and start, of the mean NEES against its band, from
     summary.json's "nees_band" (``figures.nees_band_summary``; '' without one)."""
-    if not path.is_file():
-        return ""
-    try:
-        bands = json.loads(path.read_text()).get("nees_band") or {}
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"report {path}: not valid JSON ({exc})") from None
+    bands = summary.get("nees_band") or {}
     percent = lambda v: "-" if v is None else as_percent(v)  # noqa: E731
     head = ["filter", "start", "band", "above", "below", "first outside (s)", "in words"]
     rows = []
@@ -262,8 +425,9 @@ def _nees_band(path: Path) -> str:
             band = entry.get("band")
             first = entry.get("first_time_outside_s")
             cells = [name, start,
-                     "-" if not band else (f"{100.0 * entry.get('probability', 0.95):g} %: "
-                                           f"[{band[0]:.3g}, {band[1]:.3g}]"),
+                     "-" if not band or None in band else (
+                         f"{_g(entry.get('probability', 0.95), 100.0)} %: "
+                         f"[{band[0]:.3g}, {band[1]:.3g}]"),
                      percent(entry.get("fraction_of_epochs_above")),
                      percent(entry.get("fraction_of_epochs_below")),
                      "-" if first is None else f"{first:.4g}", f"{name}: {entry.get('text', '')}"]
@@ -276,14 +440,14 @@ def _nees_band(path: Path) -> str:
             + "</tr>" + "".join(rows) + "</table>")
 
 
-def _faults(path: Path) -> str:
-    """A sentence on the data faults flagged, from summary.json ('' without one)."""
-    if not path.is_file():
-        return ""
-    try:
-        faults = json.loads(path.read_text()).get("data_faults", {})
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"report {path}: not valid JSON ({exc})") from None
+def _g(value, scale: float = 1.0) -> str:
+    """A number of summary.json as text ("-" for null, a number that was not finite)."""
+    return "-" if value is None else f"{scale * value:g}"
+
+
+def _faults(summary: dict) -> str:
+    """A sentence on the data faults flagged, from summary.json's "data_faults"."""
+    faults = summary.get("data_faults", {})
     if not faults.get("flagged_episodes"):
         return "No data fault flagged."
     kinds = ", ".join(f"{k} {n}" for k, n in sorted(faults.get("by_kind", {}).items()))
@@ -301,8 +465,19 @@ def _figures(directory: Path, starts: list[str]) -> list[Path]:
     return ordered + [p for p in pngs if p not in ordered]
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
 def _figure(path: Path) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise _refuse(path, f"cannot be read ({exc.strerror or exc})") from None
+    if not raw.startswith(PNG_SIGNATURE):
+        raise ConfigError(f"report {path}: not a PNG image (a damaged or foreign file); "
+                          "delete it (bench ... --resume without --no-figures draws the "
+                          "campaign's figures again)")
+    data = base64.b64encode(raw).decode("ascii")
     return (f'<figure><img src="data:image/png;base64,{data}" alt="{escape(path.name)}">'
             f"<figcaption><b>{escape(path.name)}</b>: {escape(figure_caption(path.name))}"
             "</figcaption></figure>")

@@ -42,8 +42,9 @@ def _shipped_experiments() -> dict[str, str]:
 
 
 SCENARIO_PAPER = _shipped_experiments()
-"""Shipped scenarios with an alignment pipeline (each names it in its file; the env is
-registered for these)."""
+"""Shipped scenarios whose file names an experiment. The other shipped files (the
+``*-paper`` ones) run their experiment's named setup (``experiments.setup_for``); every
+shipped file has an env id."""
 
 
 def scenario_names() -> list[str]:

@@ -114,6 +114,43 @@ def baseline_path(paper: str, directory: Path = BASELINE_DIR) -> Path:
     return Path(directory) / f"regress_{paper}.json"
 
 
+BASELINE_SCHEMA = 1
+"""The baseline files' layout ("schema"; the shipped ones, without it, are of this
+layout): a baseline of another schema is refused (docs/campaign-directory.md)."""
+
+
+def read_baseline(path: Path, settings: dict) -> dict:
+    """A baseline file (an object with "settings", equal to the paper's regression
+    campaign's, and numeric "metrics"), or a one-line ConfigError naming it, what is wrong
+    and what to do (``--update`` writes it again)."""
+    fix = "run with --update to write it again (or restore the file)"
+    try:
+        stored = json.loads(path.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"baseline {path} cannot be read ({exc.strerror}); {fix}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"baseline {path} is not UTF-8 (byte {exc.start}), a damaged or "
+                          f"foreign file; {fix}") from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"baseline {path} is not valid JSON ({exc.msg} at line "
+                          f"{exc.lineno}); {fix}") from None
+    if not (isinstance(stored, dict) and isinstance(stored.get("metrics"), dict)
+            and all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+                    for v in stored["metrics"].values())):
+        raise ConfigError(f"baseline {path} is not a baseline (an object with 'settings' "
+                          f"and numeric 'metrics'); {fix}")
+    stored["metrics"] = {k: math.nan if v is None else v      # null: a NaN written strictly
+                         for k, v in stored["metrics"].items()}
+    schema = stored.get("schema", BASELINE_SCHEMA)
+    if schema != BASELINE_SCHEMA:
+        raise ConfigError(f"baseline {path} has schema {schema!r}, not this aligngym's "
+                          f"({BASELINE_SCHEMA}); {fix}")
+    if stored.get("settings") != settings:
+        raise ConfigError(f"baseline {path} was made with other settings "
+                          f"({str(stored.get('settings'))[:200]}); {fix}")
+    return stored
+
+
 def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_DIR,
             workers: int | None = None) -> tuple[bool, str]:
     """Run the regression campaigns; with update, store their metrics as the baselines.
@@ -142,24 +179,14 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
         if update:
             now = campaign_metrics(paper, workers)
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_text(path, json.dumps({"settings": known[paper], "metrics": now},
+            write_text(path, json.dumps({"schema": BASELINE_SCHEMA, "settings": known[paper],
+                                         "metrics": now},
                                         indent=1, sort_keys=True))   # never a truncated one
             lines.append(f"{paper}: baseline written ({len(now)} metrics) to {path}")
             continue
         if not path.is_file():
             raise ConfigError(f"no baseline for {paper} at {path}; run with --update")
-        try:
-            stored = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"{path} is not valid JSON ({exc}); run with --update") from None
-        if not (isinstance(stored, dict) and isinstance(stored.get("metrics"), dict)
-                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                        for v in stored["metrics"].values())):
-            raise ConfigError(f"{path} is not a baseline (an object with 'settings' and "
-                              "numeric 'metrics'); run with --update")
-        if stored.get("settings") != known[paper]:
-            raise ConfigError(f"{path} was made with other settings "
-                              f"({stored.get('settings')}); run with --update")
+        stored = read_baseline(path, known[paper])
         now = campaign_metrics(paper, workers)
         diffs, missing = compare(stored["metrics"], now)
         bad = [d for d in diffs if not d.ok]

@@ -16,14 +16,14 @@ an old entry (edit the code between runs, not during one). An entry is written w
 (``atomic``); one that does not load is removed and simulated again; a cache that cannot
 be written (a full disk, no permission) is reported once and the run goes on without it.
 The directory is kept under ``TRUTH_CACHE_BYTES`` by removing the least recently used
-entries.
+entries. An entry is computed under a lock file (``flock``) that its holder removes
+before letting go, so the cache holds no lock file between runs.
 """
 from __future__ import annotations
 
 import hashlib
 import os
 import warnings
-import zipfile
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
@@ -85,6 +85,12 @@ def remember_code() -> None:
         _CODE_SHA256 = simulation_code_sha256()
 
 
+def simulation_versions() -> str:
+    """The simulation code's hash and the library versions that key the cache (and a
+    campaign's manifest)."""
+    return _versions()
+
+
 @lru_cache(maxsize=1)
 def _versions() -> str:
     import platform
@@ -132,20 +138,25 @@ def cached_arrays(kind: str, key: tuple, compute: Callable[[], dict[str, np.ndar
 
 
 def _load(path: Path) -> dict[str, np.ndarray] | None:
-    """The entry's arrays, or None if it is absent, unreadable or damaged (a damaged one
-    is removed where the cache can be written)."""
+    """The entry's arrays, or None if it is absent, unreadable, damaged or not a truth
+    entry (``is_truth_entry``: a file of another kind in its place); a damaged or foreign
+    one is removed where the cache can be written, so that it is computed and written
+    again (a miss, never an error)."""
     try:
-        with open(path, "rb") as handle, np.load(handle) as f:   # closed if damaged
-            arrays = {name: f[name] for name in f.files}
+        with open(path, "rb") as handle:                # closed if damaged
+            archive = np.load(handle)
+            if not isinstance(archive, np.lib.npyio.NpzFile):
+                raise ValueError("a single array, not an entry")
+            with archive as f:
+                arrays = {name: f[name] for name in f.files}
+        if not is_truth_entry(arrays):
+            raise ValueError("not a truth entry")
     except FileNotFoundError:
         return None
-    except (ValueError, EOFError, zipfile.BadZipFile, KeyError):   # its content is bad
-        try:
-            path.unlink(missing_ok=True)
-        except OSError:
-            pass
-        return None
     except OSError:                      # unreadable (permissions, I/O): not its content
+        return None
+    except Exception:                    # its content is bad: whatever numpy or zipfile raise
+        _remove_damaged(path)
         return None
     try:
         os.utime(path)                   # recently used: kept by the trimming
@@ -154,28 +165,94 @@ def _load(path: Path) -> dict[str, np.ndarray] | None:
     return arrays
 
 
+def is_truth_entry(arrays: dict[str, np.ndarray]) -> bool:
+    """Whether loaded arrays can be an entry: at least one array, numbers only (an
+    episode file, a campaign's time series or text arrays in its place are not)."""
+    return bool(arrays) and all(a.dtype.kind in "biufc" for a in arrays.values())
+
+
+def _remove_damaged(path: Path) -> None:
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
 @contextmanager
 def _entry_lock(folder: Path, path: Path) -> Iterator[bool]:
     """Hold the entry's lock file while it is computed, so that processes needing the
     same entry at once simulate it once (the others wait, then load it); yields whether
-    the lock is held (False when the cache's directory cannot be written)."""
+    the lock is held (False when the cache's directory cannot be written). No lock file
+    is left: its holder removes it before letting go, and a process that waited on a
+    removed one (its name now gone or another file's) lets go and locks the name anew."""
     try:
         import fcntl
         folder.mkdir(parents=True, exist_ok=True)
-        handle = open(path.with_suffix(".lock"), "a")
     except (ImportError, OSError):       # no flock here, or the directory is read-only
         yield False
         return
-    with handle:
+    lock = path.with_suffix(".lock")
+    while True:
         try:
-            fcntl.flock(handle, fcntl.LOCK_EX)
-        except OSError:                  # a file system without locks (ENOLCK)
+            handle = open(lock, "a")
+        except OSError:                  # the directory is read-only
             yield False
             return
         try:
-            yield True
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError:                  # a file system without locks (ENOLCK)
+            handle.close()
+            yield False
+            return
+        if _is_at(handle.fileno(), lock):
+            break
+        handle.close()                   # removed by its holder meanwhile: again
+    try:
+        yield True
+    finally:
+        _remove_held(lock)
+        handle.close()                   # lets go of the lock
+
+
+def _is_at(fd: int, path: Path) -> bool:
+    """Whether the open file fd is the file now named path."""
+    try:
+        named = os.stat(path)
+    except OSError:
+        return False
+    mine = os.fstat(fd)
+    return (mine.st_ino, mine.st_dev) == (named.st_ino, named.st_dev)
+
+
+def _remove_held(lock: Path) -> None:
+    """Remove a lock file this process holds (while it holds it)."""
+    try:
+        lock.unlink(missing_ok=True)
+    except OSError:                      # another user's cache: left
+        pass
+
+
+def _remove_free_locks(folder: Path) -> None:
+    """Remove the lock files no process holds (an earlier version left every one):
+    each is locked without waiting, and removed while locked if it is still the file
+    of that name; one held by another process is left to it."""
+    try:
+        import fcntl
+    except ImportError:
+        return
+    for lock in folder.glob("*.lock"):
+        try:
+            fd = os.open(lock, os.O_RDONLY)          # never created here
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if _is_at(fd, lock):
+                _remove_held(lock)
+        except OSError:                  # held (being computed), or no locks here
+            pass
         finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+            os.close(fd)
 
 
 def _store(folder: Path, path: Path, arrays: dict[str, np.ndarray]) -> None:
@@ -220,3 +297,4 @@ def _trim(folder: Path, limit: int = TRUTH_CACHE_BYTES) -> None:
             break
         path.unlink(missing_ok=True)
         total -= size
+    _remove_free_locks(folder)

@@ -111,15 +111,20 @@ def test_report_states_the_mean_nees_against_its_band(tmp_path):
     result = campaign([run("kf", np.zeros((EPISODES + 1, 11, 3)), nees, diverged)])
     (tmp_path / "settings.json").write_text(json.dumps(
         {"paper": "paper003", "scenario": "x", "experiment": {}}))
-    (tmp_path / "results.csv").write_text("filter,start,diverged\n")
-    (tmp_path / "tables.txt").write_text("")
+    from aligngym.scenarios.report import TIDY_COLUMNS
+    text = {"filter": "kf", "start": "s", "status": "converged", "status_reason": "",
+            "diverged": "False", "diverged_time_s": ""}
+    (tmp_path / "results.csv").write_text(",".join(TIDY_COLUMNS) + "\n" + ",".join(
+        text.get(c, "0") for c in TIDY_COLUMNS) + "\n")
+    (tmp_path / "tables.txt").write_text("(the campaign's tables)\n")
+    faults = {"flagged_episodes": 0, "episodes": EPISODES, "by_kind": {}, "flags": {}}
     (tmp_path / "summary.json").write_text(json.dumps(
-        {"nees_band": nees_band_summary(result)}))
+        {"data_faults": faults, "nees_band": nees_band_summary(result)}))
     page = render_report(tmp_path)
     assert "Mean NEES against its band" in page
     assert ("kf: mean NEES of 5 episodes (4 states) against its 95 % chi-square band "
             in page and "above in 33 % of the epochs, below in 11 %" in page)
-    (tmp_path / "summary.json").write_text("{}")          # an older campaign: no table
+    (tmp_path / "summary.json").write_text(json.dumps({"data_faults": faults}))  # older
     assert "Mean NEES against its band" not in render_report(tmp_path)
 
 

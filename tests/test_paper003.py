@@ -199,6 +199,20 @@ def test_the_same_command_twice_reuses_the_campaign_and_an_edited_scenario_is_re
         assert episode.stat().st_mtime_ns == kept
 
 
+def test_a_campaign_of_other_simulation_code_is_refused(tmp_path, capsys, monkeypatch):
+    """The manifest holds the simulation code's and the libraries' hash (the truth
+    cache's key): episodes simulated by other code are not resumed."""
+    from aligngym.scenarios import truth_cache
+    out = tmp_path / "c"
+    base = ["bench", "paper003", "--episodes", "1", "--filters", "kf", "--workers", "1",
+            *FAST, "--out", str(out)]
+    assert main(base) == 0
+    capsys.readouterr()
+    monkeypatch.setattr(truth_cache, "simulation_versions", lambda: "other code")
+    assert main(base + ["--resume"]) == 2
+    assert "differs in simulation (its code or library versions)" in capsys.readouterr().err
+
+
 def test_outputs_checked_before_any_work(tmp_path, capsys):
     """An --out holding a campaign needs --resume or --force (which removes its episode
     files: no other seed's episodes mix in); an unwritable --json or --out is refused
@@ -208,7 +222,7 @@ def test_outputs_checked_before_any_work(tmp_path, capsys):
     assert main(base + ["--out", str(out)]) == 0
     capsys.readouterr()
     assert main(base + ["--out", str(out), "--seed", "5"]) == 2
-    assert ("holds another campaign (it differs in seed); use --force to replace it"
+    assert ("campaign.json differs in seed); use --force to replace it"
             in capsys.readouterr().err)
     assert main(base + ["--out", str(out), "--seed", "5", "--force"]) == 0
     from aligngym.scenarios.campaign import episode_seeds

@@ -151,7 +151,7 @@ def test_an_episode_of_another_seed_is_not_taken(clean_campaign, tmp_path, monke
 
 
 @pytest.mark.parametrize("text, why", [("{not json", "does not read as JSON"),
-                                       ("[1, 2]", "is not a JSON object"),
+                                       ("[1, 2]", "holds a JSON list, not an object"),
                                        ("", "does not read as JSON")])
 def test_a_damaged_manifest_is_one_line_saying_what_to_do(text, why, clean_campaign,
                                                           tmp_path, capsys):

@@ -28,6 +28,7 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     experiment.check_filters(filters)                # (a sparse grid counts its points)
     if episodes < 1:
         raise ConfigError(f"--episodes = {episodes} must be >= 1")
+    check_campaign_memory(experiment, episodes, filters)   # before anything is written
     if executor not in EXECUTORS:
         raise ConfigError(f"--executor {executor!r} is unknown; valid: " + ", ".join(EXECUTORS))
     if address is not None and executor != "ray":
@@ -45,6 +46,76 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
                   "seed): its finished episodes are reused", file=sys.stderr)
         return _run(experiment, episodes, seed, filters, out, resume or same, workers, progress,
                     executor, address)
+
+
+def campaign_epochs(experiment: Experiment) -> int:
+    """Filter epochs (K + 1) of a campaign's fine run, from its settings: the fine
+    duration (the run less its coarse stage where the setting leaves it open) over the
+    filter step."""
+    step = float(getattr(experiment, "filter_step", 0.0) or 0.0)
+    fine = getattr(experiment, "fine_duration", None)
+    if fine is None:
+        fine = experiment.duration - float(getattr(experiment, "coarse_start", 0.0) or 0.0) \
+            - float(getattr(experiment, "coarse_duration", 0.0) or 0.0)
+    return int(fine / step + 1e-9) + 1 if step > 0.0 and fine > 0.0 else 1
+
+
+def episode_bytes(experiment: Experiment, filters: list[str]) -> float:
+    """Bytes one episode of a campaign holds until its end (a lower estimate): its
+    prepared episode (the truth and gimbal attitudes at the K + 1 epochs, and the raw
+    IMU increments of the fine run for episodes that keep them) and, per filter and
+    start, the run's stored series (attitude, covariance, state, sigma, the errors,
+    NEES and NIS at every epoch)."""
+    from dataclasses import fields
+
+    epochs = campaign_epochs(experiment)
+    n = int(getattr(experiment, "state_count", 0) or 0)
+    prepared = 3 * 9 * 8 * epochs
+    names = {f.name for f in fields(experiment.episode_class)}
+    if {"dtheta", "dv"} <= names:                 # (K, S, 3) each, 8 bytes a number
+        step = float(getattr(experiment, "filter_step", 0.0) or 0.0)
+        prepared += 2 * 3 * 8 * (epochs - 1) * step * experiment.scenario_config().imu_rate
+    per_run = 8 * epochs * (9 + n * n + n + 3 + 3 + 3 + 1 + 1)
+    return prepared + per_run * len(filters) * max(len(experiment.starts), 1)
+
+
+def check_campaign_memory(experiment: Experiment, episodes: int, filters: list[str]) -> None:
+    """One-line ConfigError, before anything is allocated or written, for more episodes
+    than the machine can hold: the campaign keeps every prepared episode and every
+    run in memory (``episode_bytes`` each), and may use at most
+    ``simulate.MEMORY_SHARE`` of the memory available now (``simulate.available_memory``;
+    no limit where it is unknown)."""
+    from aligngym.scenarios import simulate
+    have = simulate.available_memory()
+    if have is None:
+        return
+    per = episode_bytes(experiment, filters)
+    limit = int(simulate.MEMORY_SHARE * have // per)
+    if episodes > limit:
+        runs = len(filters) * max(len(experiment.starts), 1)
+        raise ConfigError(
+            f"--episodes {episodes} needs about {episodes * per / 1e9:.3g} GB "
+            f"({per / 1e6:.3g} MB an episode: the prepared episode and {runs} filter "
+            f"run(s) of {campaign_epochs(experiment)} epochs), more than "
+            f"{simulate.MEMORY_SHARE:.0%} of the {have / 1e9:.1f} GB available: at most "
+            f"{limit} episodes on this machine")
+
+
+SEED_BYTES = 48
+"""Bytes a seed takes in a list of episode seeds (the int and its pointers)."""
+
+
+def check_seed_memory(episodes: int) -> None:
+    """One-line ConfigError for a list of seeds the machine cannot hold (an episode
+    bank, which prepares its episodes a chunk at a time, still lists them all)."""
+    from aligngym.scenarios import simulate
+    have = simulate.available_memory()
+    limit = None if have is None else int(simulate.MEMORY_SHARE * have // SEED_BYTES)
+    if limit is not None and episodes > limit:
+        raise ConfigError(f"--episodes {episodes} needs about {episodes * SEED_BYTES / 1e9:.3g}"
+                          f" GB to list the seeds, more than {simulate.MEMORY_SHARE:.0%} of "
+                          f"the {have / 1e9:.1f} GB available: at most {limit} episodes on "
+                          "this machine")
 
 
 def claim_directory(out: Path) -> None:

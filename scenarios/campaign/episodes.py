@@ -60,20 +60,59 @@ class PreparedEpisode(ABC):
 
     def save(self, path: Path) -> None:
         """Write the episode to path atomically: a file on disk is a complete episode
-        (temporary names are unique, so concurrent writers do not collide)."""
+        (temporary names are unique, so concurrent writers do not collide); it carries
+        its layout's version ("schema", ``EPISODE_SCHEMA``)."""
         with atomic_path(path) as tmp:
             np.savez(tmp, **{**self.arrays(), "fault_kind": np.asarray(self.fault_kind, str),
-                             "fault_time": np.asarray(self.fault_time, float)})
+                             "fault_time": np.asarray(self.fault_time, float),
+                             "schema": np.asarray(EPISODE_SCHEMA)})
 
     @classmethod
     def load(cls, path: Path) -> "PreparedEpisode":
-        # The file opened here: np.load leaves a file it opened itself open when the
-        # archive is damaged (a ResourceWarning, a descriptor held until collected).
-        with open(path, "rb") as handle, np.load(handle) as f:
-            episode = cls.from_arrays(f)
-            if "fault_kind" in f.files:
-                episode.fault_kind, episode.fault_time = f["fault_kind"], f["fault_time"]
-            return episode
+        """The episode saved in path. A file that is not this class's episode (not an npz
+        archive, damaged, another schema, a field missing, text where numbers go) is a
+        one-line ValueError saying what is wrong; OSError passes (the file cannot be
+        read)."""
+        try:
+            # The file opened here: np.load leaves a file it opened itself open when the
+            # archive is damaged (a ResourceWarning, a descriptor held until collected).
+            with open(path, "rb") as handle:
+                archive = np.load(handle)
+                if not isinstance(archive, np.lib.npyio.NpzFile):
+                    raise ValueError("a single array, not an episode's npz archive")
+                with archive as f:
+                    return cls._from_archive(f)
+        except OSError:
+            raise
+        except Exception as exc:       # any decoding error of a damaged file: one line
+            text = f"{exc}".splitlines()[0][:120] if f"{exc}" else ""
+            raise ValueError(text if isinstance(exc, _Refused)
+                             else f"{type(exc).__name__}: {text}") from None
+
+    @classmethod
+    def _from_archive(cls, f: Any) -> "PreparedEpisode":
+        schema = f["schema"].item() if "schema" in f.files else EPISODE_SCHEMA
+        if schema != EPISODE_SCHEMA:
+            raise _Refused(f"episode file schema {schema!r}, not this aligngym's "
+                           f"({EPISODE_SCHEMA})")
+        text = [name for name in f.files if name != "fault_kind"
+                and f[name].dtype.kind not in "biufc"]
+        if text:
+            raise _Refused(f"array {text[0]!r} holds {f[text[0]].dtype} data, not numbers")
+        try:
+            return cls.from_arrays(f)
+        except KeyError as exc:            # the names the class reads
+            raise _Refused(f"no array {exc.args[0]!r}: not a {cls.__name__} file") from None
+
+
+class _Refused(ValueError):
+    """What is wrong with an episode file, said in full."""
+
+
+EPISODE_SCHEMA = 1
+"""The layout of the episode files (an array "schema" in each; a file without one is of
+this layout): a file of another schema is refused, and simulated again where it is read
+(docs/campaign-directory.md)."""
 
 
 @dataclass

@@ -66,12 +66,16 @@ def campaign_lock(out: Path) -> Iterator[None]:
 
 def manifest_of(experiment: Experiment, seed: int) -> dict:
     """What decides a campaign's episodes, as campaign.json holds it: the paper, the
-    experiment's settings, the seed and a hash of the resolved scenario (the file's
-    content with every preset it pulls in: an edited file is another campaign)."""
+    experiment's settings, the seed, a hash of the resolved scenario (the file's content
+    with every preset it pulls in: an edited file is another campaign) and a hash of the
+    simulation code and the library versions (the truth cache's key: episodes simulated
+    by other code are another campaign)."""
+    from aligngym.scenarios.truth_cache import simulation_versions
     config = repr(replace(experiment.scenario_config(), source=""))   # not where it lies
     return json.loads(json.dumps({
-        "paper": experiment.paper, "experiment": asdict(experiment), "seed": seed,
-        "scenario_sha256": hashlib.sha256(config.encode()).hexdigest()}))
+        "schema": 1, "paper": experiment.paper, "experiment": asdict(experiment), "seed": seed,
+        "scenario_sha256": hashlib.sha256(config.encode()).hexdigest(),
+        "simulation_sha256": hashlib.sha256(simulation_versions().encode()).hexdigest()}))
 
 
 def differences(saved: dict, current: dict) -> list[str]:
@@ -82,8 +86,11 @@ def differences(saved: dict, current: dict) -> list[str]:
         if isinstance(a, dict) and isinstance(b, dict):
             out += [f"{key}.{k}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
         elif a != b:
-            out.append(key if key != "scenario_sha256" else "scenario (its content)" if a
-                       else "scenario (not recorded: a campaign of an older aligngym)")
+            what = {"scenario_sha256": "scenario (its content)",
+                    "simulation_sha256": "simulation (its code or library versions)"}
+            out.append(key if key not in what else what[key] if a
+                       else what[key].split(" (")[0] + " (not recorded: a campaign of an "
+                       "older aligngym)")
     return out
 
 
@@ -106,10 +113,10 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
         if saved is None:
             raise ConfigError(f"--out {out} holds a campaign whose campaign.json is missing "
                               "or does not read; use --force to replace it or a new --out")
-        saved.setdefault("paper", current["paper"])
+        saved = {"schema": 1, "paper": current["paper"], **saved}   # older manifests
         same = saved == current
         if not same:
-            raise ConfigError(f"--out {out} holds another campaign (it differs in "
+            raise ConfigError(f"--out {out} holds another campaign ({manifest} differs in "
                               f"{', '.join(differences(saved, current))}); use --force to "
                               "replace it or a new --out")
         resume = True
@@ -117,8 +124,7 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
         raise ConfigError(f"--resume: {out} has episode files but no campaign.json, so "
                           "their experiment and seed are unknown; use --force to replace them")
     if resume and manifest.is_file():
-        saved = read_manifest(manifest)
-        saved.setdefault("paper", current["paper"])
+        saved = {"schema": 1, "paper": current["paper"], **read_manifest(manifest)}
         if saved != current:
             raise ConfigError(f"--resume: {manifest} was written by a different campaign "
                               f"(it differs in {', '.join(differences(saved, current))}); "
@@ -140,38 +146,109 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
     return same
 
 
-def _readable_manifest(manifest: Path) -> dict | None:
-    """campaign.json as a dict, or None if it is missing or does not read as one."""
+MANIFEST_SCHEMA = 1
+"""The campaign.json layout this version reads: one holding a "schema" other than this
+(a later aligngym's) is refused in one line; one without is of this layout."""
+
+
+def _manifest_problem(saved) -> str | None:
+    """What makes a decoded campaign.json not a manifest (None: it is one): an object
+    with "experiment" (an object) and "seed" (an integer); "paper", "scenario_sha256" and
+    "simulation_sha256" strings when present (older campaigns lack them)."""
+    if not isinstance(saved, dict):
+        return f"holds a JSON {type(saved).__name__}, not an object"
+    if not isinstance(saved.get("experiment"), dict):
+        return "has no \"experiment\" object"
+    seed = saved.get("seed")
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        return "has no integer \"seed\""
+    for key in ("paper", "scenario_sha256", "simulation_sha256"):
+        if key in saved and not isinstance(saved[key], str):
+            return f"\"{key}\" is not a string"
+    return None
+
+
+def _decoded_manifest(manifest: Path):
+    """(campaign.json decoded, None) or (None, what is wrong); OSError passes."""
+    data = manifest.read_bytes()
     try:
-        saved = json.loads(manifest.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return json.loads(data.decode("utf-8")), None
+    except UnicodeDecodeError as exc:
+        return None, f"is not UTF-8 (byte {exc.start})"
+    except json.JSONDecodeError as exc:
+        return None, f"does not read as JSON ({exc.msg} at line {exc.lineno})"
+
+
+def _check_schema(manifest: Path, saved: dict) -> None:
+    schema = saved.get("schema", MANIFEST_SCHEMA)
+    if schema != MANIFEST_SCHEMA:
+        raise ConfigError(f"--out: {manifest} has schema {schema!r}, not this aligngym's "
+                          f"({MANIFEST_SCHEMA}); continue it with the aligngym that wrote "
+                          "it, or use --force to start the campaign again or a new --out")
+
+
+def _readable_manifest(manifest: Path) -> dict | None:
+    """campaign.json as a dict, or None if it is missing or does not read as a manifest
+    (``_manifest_problem``); one of another schema is a one-line error."""
+    try:
+        saved, problem = _decoded_manifest(manifest)
+    except OSError:
         return None
-    return saved if isinstance(saved, dict) else None
+    if problem is not None or _manifest_problem(saved) is not None:
+        return None
+    _check_schema(manifest, saved)
+    return saved
 
 
 def read_manifest(manifest: Path) -> dict:
-    """campaign.json as a dict; a damaged one is a one-line error saying what to do."""
+    """campaign.json as a dict; a damaged or foreign one is a one-line error naming it
+    and saying what to do."""
     try:
-        saved = json.loads(manifest.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        reason = getattr(exc, "msg", None) or getattr(exc, "strerror", None) or str(exc)
-        saved, problem = None, f"does not read as JSON ({reason})"
-    else:
-        problem = "is not a JSON object"
-    if not isinstance(saved, dict):
+        saved, problem = _decoded_manifest(manifest)
+    except OSError as exc:
+        saved, problem = None, f"cannot be read ({exc.strerror or exc})"
+    if problem is None:
+        problem = _manifest_problem(saved)
+    if problem is not None:
         raise ConfigError(f"--resume: {manifest} {problem}, so the episodes' experiment "
                           "and seed are unknown; use --force to start the campaign again "
                           "(its episodes are simulated anew) or a new --out")
+    _check_schema(manifest, saved)
     return saved
 
 
 def finished_filters(out: Path) -> list[str]:
     """The filters whose rows results.csv holds (in order), none without one; a results
-    file that does not read is treated as none (it is rewritten at the end)."""
+    file that does not read (not UTF-8 CSV with a "filter" column, a row cut short) is
+    named in one line on stderr and treated as none: it is written anew when the campaign
+    finishes."""
+    import io
+    import sys
     path = out / "results.csv"
     try:
-        with open(path, newline="") as f:
-            names = [row.get("filter") for row in csv.DictReader(f)]
-    except (OSError, csv.Error, UnicodeDecodeError):
+        data = path.read_bytes()
+    except FileNotFoundError:
         return []
-    return list(dict.fromkeys(n for n in names if n))
+    except OSError as exc:
+        problem = exc.strerror or str(exc)
+    else:
+        try:
+            rows = list(csv.reader(io.StringIO(data.decode("utf-8"), newline="")))
+            problem = None
+        except UnicodeDecodeError as exc:
+            problem = f"not UTF-8 (byte {exc.start})"
+        except csv.Error as exc:
+            problem = f"not CSV ({exc})"
+        if problem is None:
+            header = rows[0] if rows else []
+            if "filter" not in header:
+                problem = "no \"filter\" column"
+            elif any(len(row) != len(header) for row in rows[1:]):
+                problem = "a row of another length than the header (cut short?)"
+    if problem is not None:
+        print(f"aligngym: {path} does not read ({problem}); its filters are not checked "
+              "against --filters, and it is written anew when the campaign finishes",
+              file=sys.stderr)
+        return []
+    column = header.index("filter")
+    return list(dict.fromkeys(row[column] for row in rows[1:] if row[column]))

@@ -88,7 +88,8 @@ def experiment_for(scenario: str, config=None, **settings) -> "Experiment":
                               ).holding(config)
         raise ConfigError(f"scenario {config.name!r} names no experiment (its file has no "
                           "experiment key; valid: " + ", ".join(experiment_names()) + "); shipped "
-                          "scenarios with one: " + ", ".join(sorted(SCENARIO_PAPER)))
+                          "scenarios with one: " + ", ".join(sorted(SCENARIO_PAPER))
+                          + "; the *-paper files run their experiment's paper setup")
     return experiment(config.experiment, scenario=scenario, **settings).holding(config)
 
 

@@ -452,8 +452,11 @@ def run_metrics(run, episodes: list[Paper004Episode], experiment: Paper004Experi
     conv = convergence_time(t, heading, HEADING_LIMIT)
     converged = heading[:, -1] <= HEADING_LIMIT
     inside = heading <= 3.0 * r.sigma_n[..., 2]
-    nees_window = np.where(np.isfinite(run.nees[:, window]), run.nees[:, window], np.nan)
-    nees_ep = np.nanmean(nees_window, axis=1)
+    nees_window = run.nees[:, window]
+    finite = np.isfinite(nees_window)            # a NaN NEES is no number, not a mean's
+    count = finite.sum(axis=1)                   # (no empty-slice warning where none is)
+    nees_ep = np.where(count > 0, np.where(finite, nees_window, 0.0).sum(axis=1)
+                       / np.maximum(count, 1), np.nan)
     sel = ok if ok.any() else np.ones_like(ok)
     return {
         "rms_deg": [float(v) for v in np.sqrt(np.mean(rms[sel] ** 2, axis=0)) / deg],
