@@ -47,7 +47,8 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     "scenarios/experiments/paper002.py": ("tests/test_nees_maps.py", ("nees",)),
     "scenarios/experiments/paper003.py": ("tests/test_nees_maps.py", ("nees",)),
     "scenarios/experiments/paper004.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
-    "estimators/rules.py": ("tests/test_rules.py tests/test_linear_exactness.py", None),
+    "estimators/rules.py": ("tests/test_rules.py tests/test_rules_definitions.py "
+                            "tests/test_linear_exactness.py", None),
     "estimators/strapdown.py": ("tests/test_strapdown.py -k 'not fidelity'", None),
     "estimators/adaptation.py": ("tests/test_adaptation.py", None),
     "sensors/imu.py": ("tests/test_imu.py", None),
@@ -83,33 +84,24 @@ the mutant computes the same numbers as the original for every input the code ca
 receive."""
 
 _M = "estimators/metrics.py:"
-_NEVER = ("convergence_time: when last_out = K - 1 the other branch, t[min(last_out + 1, K - "
-          "1)], is t[-1] too, so the condition only chooses between equal values (or, "
-          "mutated, is never true, or true only where the two are equal)")
-_TWO_D = "final_error and final_sigma are (B, 3): axis 1 is axis -1"
+_TWO_D = "final_error, final_sigma and the error are (B, 3): axis 1 is axis -1"
 _BOOL_ADD = "numpy adds boolean arrays as a logical or (and multiplies them as an and)"
 EQUIVALENT.update({
-    _M + "23: return (d - np.pi) % (2 * np.pi) - np.pi": "(d - pi) mod 2 pi = (d + pi) mod 2 pi",
-    **{_M + f"32: return np.where(last_out {c}, t[-1], t[idx])": _NEVER for c in (
-        "== t.size * 1", "== t.size ** 1", "== t.size + 1", "== t.size - 0", "== t.size / 1",
-        "== t.size // 1", "== t.size - 2", "> t.size - 1", ">= t.size - 1",
-        "is t.size - 1")},
-    _M + '37: return np.einsum("...i,...i->...", error, np.linalg.solve(P, error[..., '
+    _M + "24: return (d - np.pi) % (2 * np.pi) - np.pi": "(d - pi) mod 2 pi = (d + pi) mod 2 pi",
+    _M + '41: return np.einsum("...i,...i->...", error, np.linalg.solve(P, error[..., '
          'None])[..., -1])': "the solve's last axis has length 1: index -1 is index 0",
-    _M + "40: @dataclass(frozen=False)": "no code assigns to a rule's fields; frozen only "
+    _M + "50: @dataclass(frozen=False)": "no code assigns to a rule's fields; frozen only "
                                          "refuses an assignment",
-    _M + "56: * (np.abs(final_error) > self.floor), axis=-1)": _BOOL_ADD,
-    _M + "56: & (np.abs(final_error) > self.floor), axis=+1)": _TWO_D,
-    _M + "56: & (np.abs(final_error) > self.floor), axis=1)": _TWO_D,
-    _M + "57: blown = np.any(~(final_sigma <= self.sigma_bound), axis=+1)   # NaN counts": _TWO_D,
-    _M + "57: blown = np.any(~(final_sigma <= self.sigma_bound), axis=1)   # NaN counts": _TWO_D,
-    _M + '58: broken = np.any(~np.isfinite(final_error), axis=+1)          # never "inside"':
-        _TWO_D,
-    _M + '58: broken = np.any(~np.isfinite(final_error), axis=1)          # never "inside"':
-        _TWO_D,
-    _M + "64: return flagged + broken | lost | blown, out": _BOOL_ADD,
-    _M + "64: return flagged | broken + lost | blown, out": _BOOL_ADD,
-    _M + "64: return flagged | broken | lost + blown, out": _BOOL_ADD,
+    _M + "78: broken = ~np.all(np.isfinite(error), axis=-1) + ~np.all(np.isfinite("
+         "final_sigma),": _BOOL_ADD,
+    _M + "81: wrong = np.any((error > self.ratio * 3.0 * final_sigma) * (error > "
+         "self.floor),": _BOOL_ADD,
+    **{_M + f"{line}: {text.format(a)}": _TWO_D for a in ("+1", "1") for line, text in (
+        (78, "broken = ~np.all(np.isfinite(error), axis={}) | ~np.all(np.isfinite("
+             "final_sigma),"),
+        (79, "axis={})"), (80, "lost = np.any(error > self.lost_bound, axis={})"),
+        (82, "axis={})"), (83, "wide = np.any(final_sigma > self.sigma_bound, axis={})"),
+        (84, "outside = np.any(error > band, axis={})"))},
 })
 
 

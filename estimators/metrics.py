@@ -33,8 +33,7 @@ def convergence_time(t: np.ndarray, error: np.ndarray, threshold: float) -> np.n
     outside = ~(np.abs(error) <= threshold)     # NaN <= threshold is False: outside
     last_out = np.where(outside.any(axis=1), outside.shape[1] - 1 - np.argmax(
         outside[:, ::-1], axis=1), -1)
-    idx = np.minimum(last_out + 1, t.size - 1)
-    return np.where(last_out == t.size - 1, t[-1], t[idx])
+    return t[np.minimum(last_out + 1, t.size - 1)]     # out at the last epoch: t[-1]
 
 
 def nees(error: np.ndarray, P: np.ndarray) -> np.ndarray:

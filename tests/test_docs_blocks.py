@@ -1,6 +1,6 @@
 """Every Python code block of the README and docs/ runs as shown (issue 46): each block
-is executed as a user would paste it, with the episode counts cut to 2 (``run_campaign``
-and ``assert_alignment`` see at most 2); a block followed by a "prints" block must print
+is executed as a user would paste it, with the episode counts cut to 1 (``run_campaign``
+and ``assert_alignment`` see at most 1); a block followed by a "prints" block must print
 its filters with the same status columns (converged, not converged, diverged, lost), and
 a block that defines ``test_*`` functions has them called. ``my_module:entry``, the
 user's module the README names, is provided as the third-degree cubature filter."""
@@ -20,7 +20,7 @@ from aligngym.estimators.filters import FILTERS
 
 ROOT = Path(__file__).resolve().parents[1]
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```\n", re.S | re.M)
-MAX_EPISODES = 2
+MAX_EPISODES = 1
 
 
 def blocks() -> list[tuple[str, str, str | None]]:
@@ -107,7 +107,7 @@ def test_the_external_filter_example_marks_the_fifth_degree_rule_lost(user_world
     rule, points at sqrt(12) sigma = 208 deg of heading from the 58.5 deg start, is lost
     in every episode; the EKF, the UKF and the sparse grid converge."""
     import runpy
-    monkeypatch.setattr(sys, "argv", ["external_filter.py", "--episodes", "2"])
+    monkeypatch.setattr(sys, "argv", ["external_filter.py", "--episodes", "1"])
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
         runpy.run_path(str(ROOT / "examples" / "external_filter.py"), run_name="__main__")
@@ -115,3 +115,27 @@ def test_the_external_filter_example_marks_the_fifth_degree_rule_lost(user_world
     assert rows["cqkf-5"] == ["0%", "0%", "0%", "100%"], printed.getvalue()
     for name in ("ekf", "ukf", "sghkf-2"):
         assert rows[name] == ["100%", "0%", "0%", "0%"], printed.getvalue()
+
+
+def test_the_readmes_main_command_runs_twice(tmp_path, monkeypatch, capsys):
+    """The README's first set-up command (its `aligngym ...` part, after `pip install -e .
+    &&`), with 1 episode and a 60 s fine alignment, run twice in a row in a fresh
+    directory: both exit 0, the second continues the same campaign and prints the same
+    tables."""
+    import shlex
+
+    from aligngym.scenarios.cli import main
+    setup = (ROOT / "README.md").read_text().split("## Set-up", 1)[1]
+    command = next(m.group(2) for m in FENCE.finditer(setup)).strip()
+    assert command.startswith("pip install -e . && aligngym bench "), command
+    argv = shlex.split(command.split("&&", 1)[1])[1:]
+    argv[argv.index("--episodes") + 1] = "1"
+    argv += ["--workers", "1", "--no-figures", "--set", "fine_duration=60",
+             "--set", "coarse_duration=30", "--set", "t_k1=10", "--set", "t_k2=30"]
+    monkeypatch.chdir(tmp_path)
+    printed = []
+    for _ in range(2):
+        assert main(argv) == 0
+        printed.append(capsys.readouterr())
+    assert "holds this campaign already" in printed[1].err
+    assert printed[0].out.splitlines()[:-1] == printed[1].out.splitlines()[:-1]

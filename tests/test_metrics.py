@@ -137,3 +137,30 @@ def test_static_floor_is_the_closed_form(lat_deg):
     batched = static_alignment_floor(np.stack([C, C]), np.stack([eps_b, 2 * eps_b]),
                                      np.stack([nabla_b, 2 * nabla_b]), lat)
     np.testing.assert_allclose(batched, [expected, 2 * np.array(expected)], rtol=1e-9)
+
+
+def test_a_rule_with_its_own_thresholds():
+    """StatusRule's fields are its thresholds: lost beyond 5 deg, diverged beyond 2 x 3
+    sigma and 0.5', a sigma bound of 90 deg; a band of 2.5' is named as such."""
+    from aligngym.estimators.metrics import StatusRule
+    arcmin = DEG / 60
+    rule = StatusRule(ratio=2.0, floor=0.5 * arcmin, lost_bound=5 * DEG,
+                      sigma_bound=np.pi / 2)
+    error = np.array([[0, 0, 6 * DEG], [0, 0, 7 * arcmin], [0, 0, 3 * arcmin],
+                      [0, 0, 0.1 * arcmin]])
+    sigma = np.array([[1, 1, 60.0], [1, 1, 1.0], [1, 1, 1.0], [1, 1, 100 * 60.0]]) * arcmin
+    status, reason = rule.apply(error, sigma, 2.5 * arcmin, np.zeros(4, bool), [""] * 4)
+    assert status.tolist() == ["lost", "diverged", "not converged", "not converged"]
+    assert reason == ["final error > 5 deg", "final error > 2 x 3 sigma",
+                      "final error > the 2.5' band", "attitude sigma > 90 deg"]
+
+
+def test_an_error_and_a_sigma_both_nan_is_diverged():
+    status, reason = judge([[np.nan, 0.0, 0.0]], [[np.nan, 1.0, 1.0]])
+    assert status.tolist() == ["diverged"]
+    assert reason == ["final error or sigma not finite"]
+
+
+def test_the_fractions_of_no_episode_are_zero():
+    from aligngym.estimators.metrics import status_fractions
+    assert set(status_fractions(np.array([], dtype=str)).values()) == {0.0}
