@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import ast
 import json
+import re
 import subprocess
 import sys
 import time
@@ -164,6 +165,61 @@ EQUIVALENT.update({
                                             "args[-1] is args[0]",
 })
 
+_R = "estimators/rules.py:"
+_ONE = "fmap of the mean alone is one point: index -1 is index 0"
+_TINY = ("points below 1e-14 are zeroed for the sparse grid's merging of equal points, "
+         "whose keys are rounded to 12 digits anyway (-0.0 and 1e-16 merge with 0.0)")
+_MEAN_2D = "mean is (B, n): axis 1 is axis -1"
+EQUIVALENT.update({
+    _R + "28: MAX_POINTS = 200001": "no tensor grid m^n (m <= 9) has 200001 points",
+    _R + "82: y = fmap(mean[:, None, :])[:, -1]": _ONE,
+    _R + "131: reference = fmap(mean[:, None, :])[:, -1]": _ONE,
+    _R + "88: ": "the cache of a pure function removed: the same values, computed again",
+    _R + "267: ": "the cache of a pure function removed: the same values, computed again",
+    _R + "267: @lru_cache(maxsize= 31)": "the size of a pure function's cache",
+    _R + "267: @lru_cache(maxsize= 33)": "the size of a pure function's cache",
+    _R + "96: J = np.diag(off, 1) - np.diag(off, -1)": "np.linalg.eigh reads the lower "
+        "triangle only: the sign of the upper diagonal is never read",
+    **{_R + f"99: points[np.abs(points) {c}] = 0.0": _TINY
+       for c in ("< -0.99999999999999", "<= 1e-14", "== 1e-14")},
+    _R + "100: return points, weights * weights.sum()": "the weights are the squared first "
+        "components of unit eigenvectors: they sum to 1 (to rounding), so * and / agree",
+    _R + "121: return len(self.points(n)[ 2])": "the mean and covariance weights have one "
+        "entry per point each",
+    **{_R + f"{line}: n = mean.shape[{i}]": _MEAN_2D for line in (124, 316)
+       for i in ("+1", "1")},
+    **{_R + f"{line}: if fmap.angles or np.any(xi[centre]):      # no point at the mean: "
+       "map the mean": "the reference is then also computed without angles, where "
+       "weighted_moments does not read it, or with a point at the mean, whose image it is"
+       for line in (130, 335)},
+    _R + "137: angles: tuple[int, ...] = (), centre: int = 1,": "every caller passes centre",
+    _R + '269: m_of = (lambda l: 2 * l - 1) if growth >= "odd" else (lambda l: l)':
+        'the growth is "odd" or "linear" (checked): "linear" < "odd" and "odd" >= "odd"',
+    _R + "271: for q in range(max( -1, L - n), L):": "q = -1 asks for compositions of "
+        "n - 1 into n positive parts, and there are none",
+    _R + "272: coef = (-1) ** (L - 1 + q) * comb(n - 1, L - 1 - q)": "L - 1 + q and "
+        "L - 1 - q differ by 2 q: the same sign",
+    _R + "275: for combo in itertools.product(*[range(len(r[ 1])) for r in rules]):":
+        "a 1-D rule has as many weights as points",
+    _R + "276: point = tuple(round(float(rules[d][0][i]), 11) for d, i in enumerate(combo))":
+        "Gauss-Hermite points of orders <= 13 differ by far more than 1e-11: rounding "
+        "to 11 or 12 digits merges the same points",
+    _R + "287: if parts <= 1:": "parts is never below 1 (the caller's n >= 1, and each "
+        "level asks for one part fewer down to 1)",
+    _R + "290: for first in range(1, total - parts % 2):": "the extra first values leave "
+        "fewer than one per remaining part, whose loops are then empty: the same "
+        "compositions",
+    _R + '337: reference = np.einsum("bij,bj->bi", F0[:, 0], mean) + g0[:, -1]':
+        "g0 is (B, 1, d), the mean alone: index -1 is index 0",
+})
+EQUIVALENT_PATTERNS: list[tuple[str, str]] = [
+    (r"^estimators/rules\.py:(78|138|186|187): .*(float|np\.ndarray) "
+     r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) (np\.ndarray|None)",
+     "an annotation: under `from __future__ import annotations` it is a string, never "
+     "evaluated"),
+]
+"""Survivors equivalent by the shape of their key (regular expression, reason)."""
+
 def function_lines(module: Path, names: tuple[str, ...]) -> list[str]:
     """Line ranges "a-b" of the module's functions and methods with the given names."""
     tree = ast.parse(module.read_text())
@@ -226,8 +282,11 @@ def summarise(module: str, session: Path, seconds: float) -> dict:
                 counts["survived"] += 1
                 m = item.mutations[0]
                 key = f"{module}:{m.start_pos[0]}: " + _mutated_line(result.diff or "")
+                reason = EQUIVALENT.get(key) or next(
+                    (why for pattern, why in EQUIVALENT_PATTERNS if re.search(pattern, key)),
+                    "")
                 survivors.append({"key": key, "diff": result.diff or "",
-                                  "equivalent": EQUIVALENT.get(key, "")})
+                                  "equivalent": reason})
             elif result.test_outcome == TestOutcome.INCOMPETENT:
                 counts["incompetent"] += 1
             else:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aligngym.scenarios.atomic import write_text
+from aligngym.scenarios.atomic import json_text, write_text
 from aligngym.scenarios.config import ConfigError
 
 BASELINE_DIR = Path(__file__).resolve().parent / "data" / "baselines"
@@ -179,9 +179,9 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
         if update:
             now = campaign_metrics(paper, workers)
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_text(path, json.dumps({"schema": BASELINE_SCHEMA, "settings": known[paper],
-                                         "metrics": now},
-                                        indent=1, sort_keys=True))   # never a truncated one
+            write_text(path, json_text({"schema": BASELINE_SCHEMA, "settings": known[paper],
+                                        "metrics": now},        # NaN as null: strict JSON
+                                       indent=1, sort_keys=True))   # never a truncated one
             lines.append(f"{paper}: baseline written ({len(now)} metrics) to {path}")
             continue
         if not path.is_file():

@@ -137,3 +137,48 @@ def test_the_reduced_rule_needs_both_the_conditional_form_and_the_nonlinear_stat
         fmap = GaussianMap(noise=np.zeros((1, n, n)), fn=lambda v: v, **kwargs)
         with pytest.raises(ValueError, match="conditionally linear form"):
             ReducedGaussHermiteRule(3).moments(fmap, x, P)
+
+
+def test_symmetric_is_the_mean_of_a_matrix_and_its_transpose():
+    A = np.array([[[1.0, 2.0], [0.0, 3.0]], [[0.0, -1.0], [1.0, 0.0]]])
+    np.testing.assert_array_equal(rules.symmetric(A), [[[1.0, 1.0], [1.0, 3.0]],
+                                                       [[0.0, 0.0], [0.0, 0.0]]])
+
+
+def test_the_ekfs_central_differences_default_to_a_small_step():
+    """y = sin(x) at 0.3 with the default step: the Jacobian is cos(0.3) to 1e-9 (central
+    differences of step h err by h^2 / 6)."""
+    fmap = GaussianMap(noise=np.zeros((1, 1, 1)), fn=np.sin)
+    _, cov, cross = LinearizationRule().moments(fmap, np.array([[0.3]]), np.array([[[1.0]]]))
+    np.testing.assert_allclose(cross[0, 0, 0], np.cos(0.3), rtol=1e-9)
+
+
+def test_a_rule_must_say_how_it_maps_a_function():
+    class NoMoments(rules.IntegrationRule):
+        name = "none"
+    with pytest.raises(TypeError, match="abstract"):
+        NoMoments()
+
+
+@pytest.mark.parametrize("rule", [GaussHermiteRule(2), ReducedGaussHermiteRule(2),
+                                  rules.CubatureRule()], ids=lambda r: r.name)
+def test_an_angle_is_averaged_around_the_image_of_the_mean_not_of_the_state(rule):
+    """y = x + 0.1 rad of an angle x ~ N(2.5, 1.8^2) in 1 of 3 states (rules without a
+    point at the mean): mean 2.6, variance 1.8^2. A reference at the mean's image
+    without its offset, or at a point's image, or at 0, wraps a point by 2 pi."""
+    n, m, s = 3, 2.5, 1.8
+    if isinstance(rule, rules.CubatureRule):
+        s = 1.8 / np.sqrt(n)                       # its points at +-sqrt(3) sigma
+    P = np.diag([s ** 2, 1e-4, 1e-4])[None]
+    mean = np.array([[m, 0.0, 0.0]])
+    offset = np.array([0.1, 0.0, 0.0])
+
+    def conditional(zeta):
+        return (np.broadcast_to(np.eye(n), zeta.shape[:-1] + (n, n)),
+                np.broadcast_to(offset, zeta.shape[:-1] + (n,)))
+    fmap = GaussianMap(noise=np.zeros((1, n, n)), fn=lambda x: x + offset, angles=(0,),
+                       conditional=conditional, nonlinear=(0,))
+    y, cov, cross = rule.moments(fmap, mean, P)
+    np.testing.assert_allclose(y[0], mean[0] + offset, atol=1e-12)
+    np.testing.assert_allclose(cov, P, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(cross, P, rtol=1e-9, atol=1e-15)
