@@ -211,6 +211,23 @@ EQUIVALENT.update({
         "compositions",
     _R + '337: reference = np.einsum("bij,bj->bi", F0[:, 0], mean) + g0[:, -1]':
         "g0 is (B, 1, d), the mean alone: index -1 is index 0",
+    _R + '337: reference = np.einsum("bij,bj->bi", F0[:, -1], mean) + g0[:, 0]':
+        "F0 is (B, 1, d, n), the mean alone: index -1 is index 0",
+    _R + "272: coef = (-1) ** (L + 1 - q) * comb(n - 1, L - 1 - q)": "L + 1 - q and "
+        "L - 1 - q differ by 2: the same sign",
+    _R + "100: return points, weights ** weights.sum()": "the weights sum to 1 (to "
+        "rounding): w ** 1 is w",
+    _R + "236: if count >= MAX_POINTS:": "no tensor grid m^n has exactly 200000 points",
+    _R + "28: MAX_POINTS = 199999": "no tensor grid m^n has 199999 or 200000 points",
+    _R + "279: items = [(p, w) for p, w in acc.items() if abs(w) >= 1e-14]": "a merged "
+        "weight of exactly 1e-14 (to the last bit) does not occur",
+    _R + "121: return len(self.points(n)[ 0])": "xi has one row per point",
+    _R + "137: angles: tuple[int, ...] = (), centre: int = -1,": "every caller passes centre",
+    _R + "275: for combo in itertools.product(*[range(len(r[ -1])) for r in rules]):":
+        "a 1-D rule has as many weights as points",
+    _R + "276: point = tuple(round(float(rules[d][0][i]), 13) for d, i in enumerate(combo))":
+        "Gauss-Hermite points of orders <= 13 differ by far more than 1e-12: rounding "
+        "to 12 or 13 digits merges the same points",
 })
 EQUIVALENT_PATTERNS: list[tuple[str, str]] = [
     (r"^estimators/rules\.py:(78|138|186|187): .*(float|np\.ndarray) "

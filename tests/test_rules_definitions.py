@@ -17,6 +17,12 @@ def cubic(d=1):
     return GaussianMap(noise=np.zeros((1, d, d)), fn=lambda x: x ** 3)
 
 
+def test_a_spread_below_one_is_a_valid_unscented_rule():
+    """n + kappa in (0, 1]: points inside 1 sigma (a user's choice, valid)."""
+    xi, _, _ = UnscentedRule(spread=0.5).points(4)
+    np.testing.assert_allclose(np.abs(xi).max(), np.sqrt(0.5), rtol=1e-14)
+
+
 def test_the_defaults():
     assert ReducedGaussHermiteRule(1).point_count(5) == 1          # order 1 is valid
     assert GaussHermiteRule().order == 3
@@ -160,18 +166,20 @@ def test_a_rule_must_say_how_it_maps_a_function():
         NoMoments()
 
 
+@pytest.mark.parametrize("m, g", [(2.5, 0.1), (0.5, 0.8)])
 @pytest.mark.parametrize("rule", [GaussHermiteRule(2), ReducedGaussHermiteRule(2),
                                   rules.CubatureRule()], ids=lambda r: r.name)
-def test_an_angle_is_averaged_around_the_image_of_the_mean_not_of_the_state(rule):
-    """y = x + 0.1 rad of an angle x ~ N(2.5, 1.8^2) in 1 of 3 states (rules without a
-    point at the mean): mean 2.6, variance 1.8^2. A reference at the mean's image
-    without its offset, or at a point's image, or at 0, wraps a point by 2 pi."""
-    n, m, s = 3, 2.5, 1.8
+def test_an_angle_is_averaged_around_the_image_of_the_mean_not_of_the_state(rule, m, g):
+    """y = x + g rad of an angle x ~ N(m, 1.8^2) in 1 of 3 states (rules without a point
+    at the mean): mean m + g, variance 1.8^2. A reference elsewhere than the mean's
+    image (the mean without its offset g, or less it, a point's image, 0) wraps a
+    point by 2 pi."""
+    n, s = 3, 1.8
     if isinstance(rule, rules.CubatureRule):
         s = 1.8 / np.sqrt(n)                       # its points at +-sqrt(3) sigma
     P = np.diag([s ** 2, 1e-4, 1e-4])[None]
     mean = np.array([[m, 0.0, 0.0]])
-    offset = np.array([0.1, 0.0, 0.0])
+    offset = np.array([g, 0.0, 0.0])
 
     def conditional(zeta):
         return (np.broadcast_to(np.eye(n), zeta.shape[:-1] + (n, n)),
