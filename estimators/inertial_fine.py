@@ -22,7 +22,7 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult, run_alignment
 from aligngym.estimators.filters import GaussianFilter
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                                       per_member, stack_episodes)
+                                       per_member, stack_episodes, whole_steps)
 from aligngym.estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
 from aligngym.models.attitude import rotvec_to_dcm, skew
@@ -93,7 +93,7 @@ def fine_inputs(integrals: BodyFrameIntegrals, t1: float, duration: float,
     per_step = int(round(step / dt))
     if per_step < 1 or abs(per_step * dt - step) > 1e-9:
         raise ValueError(f"filter step {step} s must be a whole number of IMU intervals")
-    K = int(np.floor(duration / step + 1e-9))       # whole steps (5 s in 0.3 s: 16)
+    K = whole_steps(duration, step)
     idx = int(round(t1 / dt)) + per_step * np.arange(K + 1)
     if idx[-1] >= t.size:
         raise ValueError(f"the data end at {t[-1]:g} s, before t1 + duration = "

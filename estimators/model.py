@@ -151,6 +151,13 @@ Scale = float | Array
 """A noise multiplier: one number for every episode, or one per episode ((B,) or (B, 1, 1))."""
 
 
+def whole_steps(duration: float, step: float) -> int:
+    """Whole steps of step s within duration s (floor: a step that would end after the
+    data is not taken; 5 s in 0.3 s steps is 16), with a tolerance of 1e-9 of a step
+    for float rounding (0.3 s in 0.1 s steps is 3, though 0.3 / 0.1 < 3)."""
+    return int(np.floor(duration / step + 1e-9))
+
+
 def per_member(scale: Scale, batch: int) -> Array:
     """A noise multiplier as (B, 1, 1), to multiply a (B, n, n) covariance; ``[:, 0]``
     gives (B, 1) for a (B, n) diagonal."""

@@ -41,6 +41,7 @@ from gymnasium import spaces
 from aligngym.estimators.filters import UnknownFilter, filter_entry, make_filter
 from aligngym.estimators.alignment import AlignmentRun
 from aligngym.estimators.metrics import misalignment
+from aligngym.estimators.model import whole_steps
 from aligngym.models.units import arcmin
 from aligngym.scenarios.bank import SPLITS, EpisodeBank, check_seed_in_split, check_split
 from aligngym.scenarios.config import ConfigError, SettingError
@@ -106,11 +107,10 @@ REWARDS = ("attitude", "log", "final")
 
 def episode_step_count(episode_length: float, epoch_length: float) -> int:
     """Steps (filter epochs) of an episode: the whole epochs of epoch_length s within
-    episode_length s (floor: an epoch that would end after the episode's data is not
-    stepped; 5 s in 0.3-s epochs is 16 steps, to 4.8 s), with a tolerance of 1e-9 of an
-    epoch for float rounding (0.3 s in 0.1-s epochs is 3, though 0.3 / 0.1 < 3). The one
-    count the env's ``episode_steps`` and its truncation use (single and vector)."""
-    return int(np.floor(episode_length / epoch_length + 1e-9))
+    episode_length s (``estimators.model.whole_steps``, the count the filter models cut
+    too: 5 s in 0.3-s epochs is 16 steps, to 4.8 s). The one count the env's
+    ``episode_steps`` and its truncation use (single and vector)."""
+    return whole_steps(episode_length, epoch_length)
 
 
 class EnvCore:

@@ -85,14 +85,10 @@ def remember_code() -> None:
         _CODE_SHA256 = simulation_code_sha256()
 
 
+@lru_cache(maxsize=1)
 def simulation_versions() -> str:
     """The simulation code's hash and the library versions that key the cache (and a
     campaign's manifest)."""
-    return _versions()
-
-
-@lru_cache(maxsize=1)
-def _versions() -> str:
     import platform
 
     import mujoco
@@ -106,7 +102,7 @@ def entry_name(kind: str, key: tuple) -> str:
     """The entry's file name: kind and a hash of key (its repr: dataclasses, tuples and
     floats print every digit; ``cached_arrays`` does not cache a key holding an array)
     with the code and library versions."""
-    digest = hashlib.sha256(f"{kind} {key!r} {_versions()}".encode()).hexdigest()
+    digest = hashlib.sha256(f"{kind} {key!r} {simulation_versions()}".encode()).hexdigest()
     return f"{kind}-{digest[:24]}.npz"
 
 
@@ -156,7 +152,7 @@ def _load(path: Path) -> dict[str, np.ndarray] | None:
     except OSError:                      # unreadable (permissions, I/O): not its content
         return None
     except Exception:                    # its content is bad: whatever numpy or zipfile raise
-        _remove_damaged(path)
+        _remove(path)
         return None
     try:
         os.utime(path)                   # recently used: kept by the trimming
@@ -171,7 +167,9 @@ def is_truth_entry(arrays: dict[str, np.ndarray]) -> bool:
     return bool(arrays) and all(a.dtype.kind in "biufc" for a in arrays.values())
 
 
-def _remove_damaged(path: Path) -> None:
+def _remove(path: Path) -> None:
+    """Remove a damaged entry or a lock file this process holds; one the cache cannot
+    remove (another user's, a read-only cache) is left."""
     try:
         path.unlink(missing_ok=True)
     except OSError:
@@ -210,7 +208,7 @@ def _entry_lock(folder: Path, path: Path) -> Iterator[bool]:
     try:
         yield True
     finally:
-        _remove_held(lock)
+        _remove(lock)
         handle.close()                   # lets go of the lock
 
 
@@ -222,14 +220,6 @@ def _is_at(fd: int, path: Path) -> bool:
         return False
     mine = os.fstat(fd)
     return (mine.st_ino, mine.st_dev) == (named.st_ino, named.st_dev)
-
-
-def _remove_held(lock: Path) -> None:
-    """Remove a lock file this process holds (while it holds it)."""
-    try:
-        lock.unlink(missing_ok=True)
-    except OSError:                      # another user's cache: left
-        pass
 
 
 def _remove_free_locks(folder: Path) -> None:
@@ -248,7 +238,7 @@ def _remove_free_locks(folder: Path) -> None:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             if _is_at(fd, lock):
-                _remove_held(lock)
+                _remove(lock)
         except OSError:                  # held (being computed), or no locks here
             pass
         finally:

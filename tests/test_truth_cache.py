@@ -77,7 +77,7 @@ def test_a_cache_that_cannot_be_written_is_reported_once(tmp_path, monkeypatch):
 def test_off_and_another_code_version_use_no_entry(cache, monkeypatch):
     assert truth_cache.cache_directory() == cache
     name = truth_cache.entry_name("k", (1.0, "x"))
-    monkeypatch.setattr(truth_cache, "_versions", lambda: "another simulation code")
+    monkeypatch.setattr(truth_cache, "simulation_versions", lambda: "another simulation code")
     assert truth_cache.entry_name("k", (1.0, "x")) != name
     monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, "off")
     assert truth_cache.cache_directory() is None

@@ -7,6 +7,7 @@ import os
 import sys
 from pathlib import Path
 
+from aligngym.estimators.model import whole_steps
 from aligngym.scenarios.interrupts import raise_if_interrupted
 from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
@@ -57,7 +58,7 @@ def campaign_epochs(experiment: Experiment) -> int:
     if fine is None:
         fine = experiment.duration - float(getattr(experiment, "coarse_start", 0.0) or 0.0) \
             - float(getattr(experiment, "coarse_duration", 0.0) or 0.0)
-    return int(fine / step + 1e-9) + 1 if step > 0.0 and fine > 0.0 else 1
+    return whole_steps(fine, step) + 1 if step > 0.0 and fine > 0.0 else 1
 
 
 def episode_bytes(experiment: Experiment, filters: list[str]) -> float:

@@ -64,6 +64,11 @@ def campaign_lock(out: Path) -> Iterator[None]:
         os.close(_HELD.pop(out))           # releases the flock
 
 
+MANIFEST_SCHEMA = 1
+"""The campaign.json layout this version reads: one holding a "schema" other than this
+(a later aligngym's) is refused in one line; one without is of this layout."""
+
+
 def manifest_of(experiment: Experiment, seed: int) -> dict:
     """What decides a campaign's episodes, as campaign.json holds it: the paper, the
     experiment's settings, the seed, a hash of the resolved scenario (the file's content
@@ -73,7 +78,8 @@ def manifest_of(experiment: Experiment, seed: int) -> dict:
     from aligngym.scenarios.truth_cache import simulation_versions
     config = repr(replace(experiment.scenario_config(), source=""))   # not where it lies
     return json.loads(json.dumps({
-        "schema": 1, "paper": experiment.paper, "experiment": asdict(experiment), "seed": seed,
+        "schema": MANIFEST_SCHEMA, "paper": experiment.paper,
+        "experiment": asdict(experiment), "seed": seed,
         "scenario_sha256": hashlib.sha256(config.encode()).hexdigest(),
         "simulation_sha256": hashlib.sha256(simulation_versions().encode()).hexdigest()}))
 
@@ -113,7 +119,7 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
         if saved is None:
             raise ConfigError(f"--out {out} holds a campaign whose campaign.json is missing "
                               "or does not read; use --force to replace it or a new --out")
-        saved = {"schema": 1, "paper": current["paper"], **saved}   # older manifests
+        saved = _with_defaults(saved, current)
         same = saved == current
         if not same:
             raise ConfigError(f"--out {out} holds another campaign ({manifest} differs in "
@@ -124,7 +130,7 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
         raise ConfigError(f"--resume: {out} has episode files but no campaign.json, so "
                           "their experiment and seed are unknown; use --force to replace them")
     if resume and manifest.is_file():
-        saved = {"schema": 1, "paper": current["paper"], **read_manifest(manifest)}
+        saved = _with_defaults(read_manifest(manifest), current)
         if saved != current:
             raise ConfigError(f"--resume: {manifest} was written by a different campaign "
                               f"(it differs in {', '.join(differences(saved, current))}); "
@@ -146,9 +152,10 @@ def check_manifest(out: Path, experiment: Experiment, seed: int, resume: bool,
     return same
 
 
-MANIFEST_SCHEMA = 1
-"""The campaign.json layout this version reads: one holding a "schema" other than this
-(a later aligngym's) is refused in one line; one without is of this layout."""
+def _with_defaults(saved: dict, current: dict) -> dict:
+    """A saved manifest with what older campaigns lack and mean by default: this
+    schema, and the paper the current experiment is of."""
+    return {"schema": MANIFEST_SCHEMA, "paper": current["paper"], **saved}
 
 
 def _manifest_problem(saved) -> str | None:
