@@ -180,6 +180,10 @@ def simulate_indexer(spec: IndexerSpec, duration: float,
                                     np.concatenate([ctrl[:, 0], ctrl[-1:, 0]]))
 
 
+SERVO_BLOCK = 60.0
+"""Length step (s) of the servo runs: a 1 s episode runs 60 s of servo, not 600 s."""
+
+
 @lru_cache(maxsize=4)
 def cached_indexer(spec: IndexerSpec, duration: float, excitation: object = None
                    ) -> IndexerMotion:
@@ -192,7 +196,9 @@ def cached_indexer(spec: IndexerSpec, duration: float, excitation: object = None
 def indexer_run(spec: IndexerSpec, t: np.ndarray, excitation: object = None
                 ) -> IndexerMotion:
     """The cached servo run (``cached_indexer``) covering times t (s): over [0, max t]
-    rounded up to whole 600 s, so that a render at one time and the episode see one
-    motion."""
-    horizon = 600.0 * max(1, int(np.ceil(float(np.max(t)) / 600.0 - 1e-9)))
+    rounded up to whole ``SERVO_BLOCK`` s, so that calls at nearby times (a render and
+    its episode) share one run. Runs of different lengths are the same motion: the
+    servo is causal and its command does not depend on the length; only the truth
+    spline's end condition differs, within a fraction of a second of the run's end."""
+    horizon = SERVO_BLOCK * max(1, int(np.ceil(float(np.max(t)) / SERVO_BLOCK - 1e-9)))
     return cached_indexer(spec, horizon, excitation)

@@ -55,6 +55,18 @@ def test_servo_lags_the_ramp_by_2_zeta_rate_over_wn_and_settles(servo):
     assert np.abs(rate - servo.rate).max() < spec.servo_step / 2 * np.abs(accel).max() * 1.2
 
 
+def test_a_shorter_servo_run_is_the_start_of_a_longer_one():
+    """The servo is causal and its command does not depend on the run's length: a 60 s
+    run (what a short episode simulates, ``indexer_run``) and a 600 s one give the same
+    truth bit for bit, all but the last 0.1 s (the spline's end condition)."""
+    spec = IndexerSpec(dwell=20.0)                     # slews at 20 s and 46 s
+    excite = lambda t: 0.05 * np.sin(0.7 * t)          # noqa: E731
+    short, long = simulate_indexer(spec, 60.0, excite), simulate_indexer(spec, 600.0, excite)
+    t = np.linspace(0.0, 59.9, 30001)
+    for a, b in zip(short.state(t), long.state(t)):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_hull_yaw_acceleration_deflects_the_servo_by_its_stiffness():
     """The rotor's reaction to the hull's yaw acceleration a: deflection -a / w_n^2 (quasi
     static, the swing is far below the servo's bandwidth)."""
