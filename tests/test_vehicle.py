@@ -113,8 +113,11 @@ def test_gps_outage_latency_and_low_speed_flags():
 
 @pytest.fixture(scope="module")
 def figure8_episode():
+    """150 s of figure8-gps, the car starting at 5 s: the start of the 600 s fidelity
+    run's drive (``test_fidelity_smooth_road_600s``), so its smooth-road run is reused,
+    not simulated again."""
     config = load_scenario("figure8-gps").with_options(duration=150.0)
-    config = replace(config, motion=replace(config.motion, start_time=0.0))
+    config = replace(config, motion=replace(config.motion, start_time=5.0))
     return simulate(config, seed=1)
 
 
@@ -143,9 +146,10 @@ def test_figure8_gps_export(figure8_episode):
 
 def test_odometer_scale_error_and_slip():
     """Odometer distance vs the truth path length: the configured dK_D plus the tyres'
-    slip and effective-radius error (reported: a few 1e-3)."""
+    slip and effective-radius error (reported: a few 1e-3). The car starts at 5 s, as in
+    the scenario file: the first 120 s of the 600 s fidelity run's drive, reused."""
     config = load_scenario("ring-road-odometer").with_options(duration=120.0)
-    config = replace(config, motion=replace(config.motion, start_time=2.0))
+    assert config.motion.start_time == 5.0
     ep = simulate(config, seed=4)
     speed = np.linalg.norm(ep.truth.v_n[:, :2], axis=1)
     path = np.sum(0.5 * (speed[1:] + speed[:-1]) * np.diff(ep.truth.t))
