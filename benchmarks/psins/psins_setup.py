@@ -1,6 +1,6 @@
-"""What the PSINS checks (``ckf_000.py``, ``lckf_001.py``, ``filters_004.py``) share: their
-options, finding GNU Octave and a PSINS tree, the stub its ``glvf`` needs, the temporary
-workspace and the Octave run itself."""
+"""What the PSINS checks (``ckf_000.py``, ``lckf_001.py``, ``static_002.py``,
+``filters_004.py``) share: their options, finding GNU Octave and a PSINS tree, the stub
+its ``glvf`` needs, the temporary workspace and the Octave run itself."""
 from __future__ import annotations
 
 import os
