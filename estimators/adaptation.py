@@ -521,7 +521,8 @@ class SelectiveWeights(_RobustObservations):
             R, w_obs = None, np.ones(misclosure.shape)
         # A rejected observation (an outlier) says nothing of the state: no state weight.
         measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] & (w_obs > 0.0)
-        outside = measured & (misclosure > self.m * sigma)
+        # A direction known exactly (sigma 0) cannot be widened by scaling: weight 1.
+        outside = measured & (sigma > 0.0) & (misclosure > self.m * sigma)
         with np.errstate(divide="ignore", invalid="ignore"):
             w = np.where(outside, self.m * sigma / misclosure, 1.0)
         W_inv = np.eye(J.shape[-1]) + np.einsum("bi,bin,bik->bnk", 1.0 / w - 1.0, U, U)

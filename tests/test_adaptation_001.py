@@ -265,20 +265,17 @@ def test_selective_weights_with_robust_observations_by_default():
     np.testing.assert_allclose(plain.factors[1], [1 / 6, 1, 1, 1], rtol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "adaptation.py:526-529: a measured direction with zero predicted variance (sigma = 0) "
-    "and a non-zero misclosure gives w = 0, 1/w = inf, and W^-1 J W^-1 is NaN for every "
-    "state of the episode (inf * 0), with a RuntimeWarning; for any sigma > 0 the state "
-    "weight is finite and the other states are untouched"))
 def test_selective_weight_of_a_state_with_zero_variance_stays_finite():
     """A state known exactly (J_00 = 0) measured with misclosure 1: P_pred finite and the
-    unmeasured state's variance (J_11 = 1) untouched, as for sigma = 1e-6 (where
-    P_pred_00 = (|L|/m)^2 = 0.16, ALGORITHMS 5.3 'Effect')."""
+    unmeasured state's variance (J_11 = 1) untouched (a zero variance cannot be widened
+    by scaling: its weight is 1; before, 1 / w = inf made every state NaN)."""
     U = np.array([[[1.0, 0.0]]])
     ctx = context([[1.0]], [[[1.0]]], [[[1.0]]], [np.diag([0.0, 1.0])], [np.zeros((2, 2))],
                   U, motion=[True], directions=U)
-    P = SelectiveWeights(robust=False).adapt(ctx).P_pred
+    adjusted = SelectiveWeights(robust=False).adapt(ctx)
+    P = adjusted.P_pred
     assert np.all(np.isfinite(P)) and P[0, 1, 1] == 1.0
+    assert adjusted.factors[0, 0] == 1.0
 
 
 def test_selective_weights_need_directions():
