@@ -521,7 +521,9 @@ class SelectiveWeights(_RobustObservations):
             R, w_obs = None, np.ones(misclosure.shape)
         # A rejected observation (an outlier) says nothing of the state: no state weight.
         measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] & (w_obs > 0.0)
-        # A direction known exactly (sigma 0) cannot be widened by scaling: weight 1.
+        # A direction known exactly (sigma 0) keeps weight 1, a convention: the scaling
+        # W^-1 J W^-1 cannot widen a zero variance (1 / w = inf would make every state NaN),
+        # though its limit for sigma -> 0 would set that variance to (|L| / m)^2.
         outside = measured & (sigma > 0.0) & (misclosure > self.m * sigma)
         with np.errstate(divide="ignore", invalid="ignore"):
             w = np.where(outside, self.m * sigma / misclosure, 1.0)

@@ -196,9 +196,10 @@ def cached_indexer(spec: IndexerSpec, duration: float, excitation: object = None
 def indexer_run(spec: IndexerSpec, t: np.ndarray, excitation: object = None
                 ) -> IndexerMotion:
     """The cached servo run (``cached_indexer``) covering times t (s): over [0, max t]
-    rounded up to whole ``SERVO_BLOCK`` s, so that calls at nearby times (a render and
-    its episode) share one run. Runs of different lengths are the same motion: the
-    servo is causal and its command does not depend on the length; only the truth
-    spline's end condition differs, within a fraction of a second of the run's end."""
+    rounded up to whole ``SERVO_BLOCK`` s, so that calls within one block share a run.
+    Runs of different lengths are the same motion: the servo is causal and its command
+    does not depend on the length; only the truth spline's end condition differs, in
+    the last 0.1 s of a run (a render in another block than its episode sees the same
+    motion to the last bit elsewhere)."""
     horizon = SERVO_BLOCK * max(1, int(np.ceil(float(np.max(t)) / SERVO_BLOCK - 1e-9)))
     return cached_indexer(spec, horizon, excitation)

@@ -267,8 +267,9 @@ def test_selective_weights_with_robust_observations_by_default():
 
 def test_selective_weight_of_a_state_with_zero_variance_stays_finite():
     """A state known exactly (J_00 = 0) measured with misclosure 1: P_pred finite and the
-    unmeasured state's variance (J_11 = 1) untouched (a zero variance cannot be widened
-    by scaling: its weight is 1; before, 1 / w = inf made every state NaN)."""
+    unmeasured state's variance (J_11 = 1) untouched. A chosen convention, not the limit:
+    the direction keeps weight 1 (its variance stays 0), where sigma -> 0 would tend to
+    (|L| / m)^2 = 0.16; before, 1 / w = inf made every state NaN."""
     U = np.array([[[1.0, 0.0]]])
     ctx = context([[1.0]], [[[1.0]]], [[[1.0]]], [np.diag([0.0, 1.0])], [np.zeros((2, 2))],
                   U, motion=[True], directions=U)

@@ -176,7 +176,8 @@ def test_with_a_prior_that_fits_the_start_every_filter_keeps_the_bayesian_residu
 
 
 def test_the_best_filter_is_within_1_arcmin_of_the_floors(default_runs):
-    """sghkf-2 (the UKF with kappa = 3 - n): heading RMS from the floors below 1'."""
+    """sghkf-2 (the UKF's points at kappa = 3 - n, without its beta): heading RMS from the
+    floors below 1'."""
     d = default_runs("sghkf-2")["paper"][0]
     assert np.sqrt(np.mean(d[:, 2] ** 2)) < 1 * arcmin
 

@@ -1,7 +1,8 @@
-"""Every integration rule meets its stated polynomial degree, and no more, through
+"""The EKF and every point rule meet their stated polynomial degree, and no more, through
 ``moments`` on a correlated three-dimensional Gaussian with a non-zero mean: the mean,
 covariance and cross-covariance of monomials against their exact values from Isserlis'
-theorem (computed here, apart from the rules' points and weights)."""
+theorem (computed here, apart from the rules' points and weights). The reduced-dimension
+rule is checked against the full tensor rule in tests/test_rules.py."""
 import functools
 import itertools
 import math
@@ -26,9 +27,11 @@ RULES = [  # (rule, the total degree of the monomials it integrates exactly)
     (GaussHermiteRule(2), 3), (GaussHermiteRule(3), 5), (GaussHermiteRule(4), 7),
     (SparseGridGaussHermiteRule(2), 3), (SparseGridGaussHermiteRule(3), 5),
     (SparseGridGaussHermiteRule(4), 9), (SparseGridGaussHermiteRule(3, "linear"), 5)]
-"""A level-L sparse grid is exact to total degree 2L - 1 in any dimension; with the odd
-growth (1-D rules of 2l - 1 points, of degree 4l - 3) level 4 reaches degree 9 in three
-dimensions (measured: exact at 9, off by 25 % at 10; levels 2 and 3 stop at 2L - 1)."""
+"""A level-L sparse grid is exact to total degree 2L - 1 in any dimension (its guarantee);
+with the odd growth (1-D rules of 2l - 1 points, of degree 4l - 3) level 4 happens to
+reach degree 9 in three dimensions (measured: exact at 9, off by 25 % at 10; from four
+dimensions x1^2 x2^2 x3^2 x4^2 is outside): the 9 pins this case, it is not the rule's
+degree. Levels 2 and 3 stop at 2L - 1 here."""
 
 
 @functools.lru_cache(maxsize=None)
@@ -88,11 +91,14 @@ def exact_moment(which: str, terms: list[tuple[int, ...]]) -> np.ndarray:
 def test_every_rule_is_exact_to_its_degree(rule, degree):
     """The mean of every monomial of total degree <= d, the covariance of those of degree
     <= d // 2 (their products have degree <= d) and the cross-covariance with x of those
-    of degree <= d - 1. The EKF's Jacobian is by central differences: exact for a linear
-    map to their rounding."""
+    of degree <= d - 1 (the EKF: its covariance and cross-covariance of linear maps). Its
+    Jacobian is by central differences: exact for a linear map to their rounding."""
     tol = 1e-7 if isinstance(rule, LinearizationRule) else 1e-10
-    for terms, which in ((monomials(degree), "mean"), (monomials(degree // 2), "cov"),
-                         (monomials(degree - 1), "cross")):
+    # The EKF's J P J^T and P J^T are exact for linear maps: degree 1 for both.
+    low = 1 if isinstance(rule, LinearizationRule) else 0
+    for terms, which in ((monomials(degree), "mean"),
+                         (monomials(max(degree // 2, low)), "cov"),
+                         (monomials(max(degree - 1, low)), "cross")):
         mean, cov, cross = rule.moments(monomial_map(terms), MEANS, COVS)
         got = {"mean": mean, "cov": cov, "cross": cross}[which]
         np.testing.assert_allclose(got, exact_moment(which, terms), rtol=tol, atol=tol,
@@ -118,3 +124,23 @@ def test_the_isserlis_oracle_on_hand_computed_moments():
     assert expectation(1, (0, 2)) == pytest.approx(m[0] * m[2] + P[0, 2])
     assert expectation(1, (2,) * 4) == pytest.approx(
         m[2] ** 4 + 6 * m[2] ** 2 * P[2, 2] + 3 * P[2, 2] ** 2)
+
+
+@pytest.mark.parametrize("rule, n, centre, centre_cov, outer, spread", [
+    (UnscentedRule(kappa=None), 4, -1 / 3, -1 / 3 + 2, 1 / 6, 3.0),       # kappa = 3 - n
+    (UnscentedRule(), 4, 0.0, 2.0, 1 / 8, 4.0),                           # kappa = 0
+    (UnscentedRule(spread=1.5), 4, -5 / 3, -5 / 3 + 2, 1 / 3, 1.5),       # the STUKF's
+    (SparseGridGaussHermiteRule(2), 4, -1 / 3, -1 / 3, 1 / 6, 3.0)])      # no beta
+def test_points_and_weights_by_hand(rule, n, centre, centre_cov, outer, spread):
+    """The weights the moments above cannot see (a centre point's offset is zero on those
+    maps): W_0 = lambda / (n + lambda), W_0^c = W_0 + 1 - alpha^2 + beta (beta 2),
+    W_i = 1 / (2 (n + lambda)), points at +-sqrt(n + lambda) on the axes (Julier &
+    Uhlmann 2004); the level-2 sparse grid has the kappa = 3 - n points without beta."""
+    xi, wm, wc = rule.points(n)
+    at_centre = np.all(xi == 0.0, axis=1)
+    assert at_centre.sum() == 1 and len(xi) == 2 * n + 1
+    assert wm[at_centre][0] == pytest.approx(centre) and wc[at_centre][0] == pytest.approx(
+        centre_cov)
+    np.testing.assert_allclose(wm[~at_centre], outer)
+    np.testing.assert_allclose(np.sort(np.abs(xi[~at_centre]).max(axis=1)),
+                               np.sqrt(spread))

@@ -67,6 +67,16 @@ def test_a_shorter_servo_run_is_the_start_of_a_longer_one():
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("t_max", [0.5, 59.99, 60.0, 60.01, 600.0, 601.0])
+def test_the_cached_servo_run_covers_the_times_asked_for(t_max):
+    """indexer_run's block rounding never leaves a time beyond its run (the spline would
+    extrapolate silently): the run reaches max t, by less than a block plus a step."""
+    from aligngym.models.indexer import SERVO_BLOCK, indexer_run
+    spec = IndexerSpec(stops=(0.0,))
+    run = indexer_run(spec, np.array([0.0, t_max]))
+    assert t_max <= run.t[-1] < t_max + SERVO_BLOCK + 2 * spec.servo_step
+
+
 def test_hull_yaw_acceleration_deflects_the_servo_by_its_stiffness():
     """The rotor's reaction to the hull's yaw acceleration a: deflection -a / w_n^2 (quasi
     static, the swing is far below the servo's bandwidth)."""
