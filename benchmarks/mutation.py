@@ -50,7 +50,8 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     "scenarios/experiments/paper004.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
     "estimators/rules.py": ("tests/test_rules.py tests/test_rules_definitions.py "
                             "tests/test_linear_exactness.py", None),
-    "estimators/strapdown.py": ("tests/test_strapdown.py -k 'not fidelity'", None),
+    "estimators/strapdown.py": ("tests/test_strapdown_units.py tests/test_strapdown.py -k "
+                                "'not fidelity'", None),
     "estimators/adaptation.py": ("tests/test_adaptation.py tests/test_adaptation_001.py",
                                  None),
     "sensors/imu.py": ("tests/test_imu.py", None),

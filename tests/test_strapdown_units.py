@@ -128,12 +128,6 @@ def test_velocity_increment_batched_equals_one_by_one():
                 got[i, j], body_velocity_increment(*(x[i, j] for x in args)))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "estimators/strapdown.py:80-83 (body_velocity_increment): the second-order term "
-    "uses alpha = integral of the rate, not the rotation vector, whose coning part "
-    "tau^3/6 (a x e) is second order; when the rate turns (a not parallel to e) the "
-    "term (a x e) x (c/24 + d/30) is missing, so the error is second, not third, order "
-    "(a = 1e-2 U, b = 2e-2 W: off by 2.9e-5 of 1.9e-4, that term's size)"))
 def test_second_order_part_is_exact_when_the_rate_turns():
     """Module docstring: dv_b to second order in the rotation from the linear rate and
     force models. With the rate direction turning (coning plus sculling), the second
