@@ -54,7 +54,7 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
                                 "'not fidelity'", None),
     "estimators/adaptation.py": ("tests/test_adaptation.py tests/test_adaptation_001.py",
                                  None),
-    "sensors/imu.py": ("tests/test_imu.py", None),
+    "sensors/imu.py": ("tests/test_imu.py tests/test_imu_units.py", None),
     "sensors/encoder.py": ("tests/test_imu.py", None),
 }
 EXCLUDED_OPERATORS = [r"core/ReplaceBinaryOperator_(Add|Sub|Mul|Div|FloorDiv|Mod|Pow)_"

@@ -30,7 +30,7 @@ def gm_adev_peak() -> float:
     """Peak of the Allan deviation of a unit-variance first-order Gauss-Markov process.
 
     sigma_A^2(tau) = 2 sigma^2 / x [1 - (3 - 4 e^-x + e^-2x) / (2x)], x = tau / T_c;
-    the peak (~0.6175 at x ~ 1.89) does not depend on T_c. Computed on first use (a
+    the peak (0.6174 at x ~ 1.89) does not depend on T_c. Computed on first use (a
     200001-point grid: 8 ms that importing the sensors need not pay).
     """
     x = np.linspace(0.5, 6.0, 200001)
