@@ -55,7 +55,7 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     "estimators/adaptation.py": ("tests/test_adaptation.py tests/test_adaptation_001.py",
                                  None),
     "sensors/imu.py": ("tests/test_imu.py tests/test_imu_units.py", None),
-    "sensors/encoder.py": ("tests/test_imu.py", None),
+    "sensors/encoder.py": ("tests/test_imu.py tests/test_encoder.py", None),
 }
 EXCLUDED_OPERATORS = [r"core/ReplaceBinaryOperator_(Add|Sub|Mul|Div|FloorDiv|Mod|Pow)_"
                       r"(BitOr|BitAnd|BitXor|LShift|RShift)$"]
