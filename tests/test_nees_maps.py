@@ -155,3 +155,23 @@ def test_the_truth_enters_as_the_estimate_does(probe):
         np.testing.assert_allclose(exp.nees(replace(fine, x=x), moved, error_n), base,
                                    rtol=1e-6, err_msg=f"state {index}")
         assert not np.allclose(exp.nees(fine, moved, error_n), base, rtol=1e-9), index
+
+
+def test_the_attitude_estimate_in_the_state_and_in_the_attitude_are_one(probe):
+    """Euler models (C_s_n): the model's attitude C_s_n holds the whole estimate, the
+    state's Euler error x[0:3] the part not yet fed back (C_s_n = C_p_n(x) C_ins). With
+    C_s_n kept, an unfed estimate of 3 sigma per axis in the state leaves the NEES as it
+    was to second order (1 %): the truth-to-state map turns C_s_n back by x, and the
+    error is x minus the true Euler error. A map that turned it the wrong way, or added
+    the truth, would move each axis by 6 sigma."""
+    exp, fine, episodes, error_n, (_, _, _, (how, indices)) = probe
+    if how != "C_s_n":
+        pytest.skip(f"paper{exp.paper}'s attitude is the error the engine hands in")
+    variances = fine.P[0, 0].diagonal()
+    x = fine.x.copy()
+    x[..., list(indices)] = 0.0
+    flat = replace(fine, x=x)
+    unfed = x.copy()
+    unfed[..., list(indices)] = 3.0 * np.sqrt(variances[list(indices)])
+    np.testing.assert_allclose(exp.nees(replace(fine, x=unfed), episodes, error_n),
+                               exp.nees(flat, episodes, error_n), rtol=1e-2)
