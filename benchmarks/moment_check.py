@@ -82,8 +82,9 @@ def monte_carlo(fmap, mean: np.ndarray, cov: np.ndarray, draws: int, seed: int =
             "se_cov": np.sqrt(np.maximum(var_outer, 0.0) / draws)}
 
 
-def compare(rule, fmap, mean, cov, mc: dict) -> dict | None:
-    """The rule's errors against the Monte Carlo, or None where it does not apply."""
+def compare(rule, fmap, mean, cov, mc: dict) -> dict:
+    """The rule's errors against the Monte Carlo, or {"skipped": why} where it does not
+    apply to the map."""
     try:
         y, C, _ = rule.moments(fmap, mean[None], cov[None])
     except ValueError as exc:          # the rule does not apply to this map

@@ -42,8 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     config = exp.scenario_config()
     twin_config = replace(
         config, imu=replace(config.imu, gyro=unmodelled_only(config.imu.gyro),
-                            accel=replace(unmodelled_only(config.imu.accel),
-                                          scale_factor_sigma=0.0, misalignment_sigma=0.0)),
+                            accel=TriadSpec()),   # drawn after the gyro: its draws kept
         gps=replace(config.gps, position_sigma_h=0.0, position_sigma_v=0.0,
                     velocity_sigma=0.0))
     seeds = episode_seeds(args.seed, args.episodes)
