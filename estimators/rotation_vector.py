@@ -91,9 +91,22 @@ class InsQuantities:
     h: np.ndarray
 
     def rates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The INS's omega_ie, omega_en (rad/s) and gravity (m/s^2) in its frame."""
-        return (earth_rate_n(self.lat), transport_rate_n(self.lat, self.h, self.v),
+        """The INS's omega_ie, omega_en (rad/s) and gravity (m/s^2) in its frame
+        (computed once: the derivatives evaluate them at every stage and point)."""
+        cached = self.__dict__.get("_rates")
+        if cached is None:
+            cached = self.__dict__["_rates"] = (
+                earth_rate_n(self.lat), transport_rate_n(self.lat, self.h, self.v),
                 gravity_n(self.lat, self.h))
+        return cached
+
+    def position_rate(self) -> np.ndarray:
+        """d(L, lambda, h)/dt (..., 3) of the INS (computed once)."""
+        cached = self.__dict__.get("_position_rate")
+        if cached is None:
+            cached = self.__dict__["_position_rate"] = _position_rate(self.lat, self.h,
+                                                                      self.v)
+        return cached
 
 
 def _position_rate(lat: np.ndarray, h: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -157,7 +170,7 @@ def st_derivative(x: np.ndarray, q: InsQuantities) -> np.ndarray:
     out[..., DV] = (mv(q.C_b_p, x[..., NABLA]) + g - mv(C_n_p, g_t)
                     - cross(w_ie - mv(C_n_p, w_ie_t), q.v) + cross(q.v, eps_p)
                     - cross(w_ie + w_en + mv(C_n_p, w_ie_t) - eps_p, x[..., DV]))
-    out[..., DP] = _position_rate(q.lat, q.h, q.v) - _position_rate(lat_t, h_t, v_t)
+    out[..., DP] = q.position_rate() - _position_rate(lat_t, h_t, v_t)
     return out
 
 
@@ -174,7 +187,7 @@ def classic_derivative(x: np.ndarray, q: InsQuantities) -> np.ndarray:
     out[..., DV] = (f_p - mv(C_p_n, f_p) + mv(C_p_n, mv(q.C_b_p, x[..., NABLA]))
                     - cross(2 * w_ie + w_en, q.v) + cross(2 * w_ie_t + w_en_t, v_t)
                     + g - g_t)
-    out[..., DP] = _position_rate(q.lat, q.h, q.v) - _position_rate(lat_t, h_t, v_t)
+    out[..., DP] = q.position_rate() - _position_rate(lat_t, h_t, v_t)
     return out
 
 
