@@ -32,7 +32,7 @@ import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 from aligngym.estimators.alignment import AlignmentRun
-from aligngym.estimators.filters import make_filter
+from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.model import wrap_angle
 from aligngym.models.units import arcmin, arcsec, deg
 from aligngym.scenarios.campaign import episode_seeds, filter_threads, prepare_all, run_filter

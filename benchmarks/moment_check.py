@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from aligngym.estimators.filters import filter_entry
+from aligngym.estimators.catalogue import filter_entry
 from aligngym.estimators.model import wrap_angle
 from aligngym.estimators.rules import (MAX_POINTS, CubatureRule, GaussHermiteRule,
                                        LinearizationRule, ReducedGaussHermiteRule,

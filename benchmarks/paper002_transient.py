@@ -27,7 +27,7 @@ import numpy as np
 from aligngym.estimators.alignment import run_alignment
 from aligngym.estimators.euler_large import PAPER002, C_p_n, EulerLargeMisalignmentModel, \
     stack_integrals
-from aligngym.estimators.filters import make_filter
+from aligngym.estimators.catalogue import make_filter
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import arcmin, deg, deg_per_h
 from aligngym.scenarios.campaign import analyse_run, episode_seeds

@@ -53,6 +53,15 @@ class AdaptationContext:
 
 
 @dataclass(frozen=True)
+class PolicyTuning:
+    """An agent's retune of an adaptation policy at an update: floor (> 0), the new lower
+    bound of the fading factors, one number or one per episode (B,) (the policies with
+    fading factors only)."""
+
+    floor: float | np.ndarray
+
+
+@dataclass(frozen=True)
 class Adjustment:
     """A policy's decision: P_pred (B, n, n) and R (B, m, m), None = unchanged
     (PhiPPhi + Q and the model's R); factors (B, k) for the record; rejected (B, m):
@@ -115,6 +124,11 @@ class AdaptationPolicy(ABC):
     def reset(self, batch: int) -> None:
         """Start a new batch of episodes."""
 
+    def tune(self, tuning: PolicyTuning) -> None:
+        """Take an agent's retune (``PolicyTuning``) from this update on; ValueError for a
+        policy without fading factors."""
+        raise ValueError(f"adaptation {self.name!r} has no fading factors to retune")
+
     @abstractmethod
     def adapt(self, ctx: AdaptationContext) -> Adjustment:
         """The adjustment for this update."""
@@ -162,6 +176,9 @@ class InnovationFading(AdaptationPolicy):
         self._C = np.where(complete[:, None, None], new, self._C)
         self._started = self._started | complete
         return self._C
+
+    def tune(self, tuning: PolicyTuning) -> None:
+        self.retune(tuning.floor)
 
     def retune(self, floor: float | np.ndarray) -> None:
         """An agent's action: a new lower bound of the factors (> 0), one number or one

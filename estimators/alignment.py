@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aligngym.estimators.filters import GaussianFilter
-from aligngym.estimators.linalg import solve_each
+from aligngym.estimators.adaptation import PolicyTuning
+from aligngym.estimators.filters import GaussianFilter, UpdateReport
 from aligngym.estimators.model import FilterModel, Scale
 
 
@@ -81,18 +81,19 @@ class AlignmentRun:
         self.P[:, k] = filt.P
         self.sigma_n[:, k] = self.model.attitude_sigma(k, filt.P)
 
-    def step(self, q_scale: tuple[Scale, Scale] = (1.0, 1.0), r_scale: Scale = 1.0) -> None:
+    def step(self, q_scale: tuple[Scale, Scale] = (1.0, 1.0), r_scale: Scale = 1.0,
+             tuning: PolicyTuning | None = None) -> UpdateReport:
         """One epoch. q_scale multiplies the (gyro, accelerometer) white-noise variances,
-        r_scale the measurement-noise variance (1 = as tuned); each a number or one per
-        episode, (B,)."""
+        r_scale the measurement-noise variance (1 = as tuned), each a number or one per
+        episode, (B,); tuning: a retune of the adaptation policy (``PolicyTuning``).
+        Returns the epoch's ``UpdateReport`` (before the model's feedback)."""
         if self.done:
             raise RuntimeError("the fine alignment is finished")
         start = time.perf_counter()
         k, filt, model = self.k, self.filt, self.model
-        live_before = filt.live.copy()
         filt.predict(model.transition(k, q_scale))
-        filt.update(model.observation(k, r_scale))
-        width = filt.factors.shape[-1]
+        report = filt.update(model.observation(k, r_scale), tuning)
+        width = report.factors.shape[-1]
         if self.factors is None:
             self.factors = np.zeros((self.batch, self.epochs, width))
         elif width > self.factors.shape[-1]:  # m grew: widen, NaN where not formed
@@ -100,24 +101,16 @@ class AlignmentRun:
             grown[..., : self.factors.shape[-1]] = self.factors
             self.factors = grown
         self.factors[:, k] = np.nan
-        self.factors[:, k, :width] = filt.factors
-        if filt.innovation is not None:
-            live = live_before            # the epoch an episode diverges at counts too
-            e, S, valid = filt.predicted
-            eye = np.eye(e.shape[-1])
-            e = np.where(live[:, None] & valid, e, 0.0)
-            S = np.where(live[:, None, None] & valid[:, :, None] & valid[:, None, :], S, eye)
-            S = np.where(np.isfinite(S), S, eye)
-            # NaN for an episode whose S is singular (its filter flags it)
-            nis = np.einsum("bi,bi->b", e, solve_each(S, e[..., None])[0][..., 0])
-            dof = valid.sum(-1)
-            self.nis[:, k] = np.where((dof > 0) & live, nis, np.nan)
-            self.nis_dof[:, k] = dof
+        self.factors[:, k, :width] = report.factors
+        # the epoch an episode diverges at counts too (the report's NIS: live before)
+        self.nis[:, k] = report.nis
+        self.nis_dof[:, k] = report.nis_dof
         filt.x, filt.P = model.feedback(filt.x, filt.P, filt.live)
         self.x[:, k + 1] = filt.x
         self.k += 1
         self._record()
         self.compute_seconds += time.perf_counter() - start
+        return report
 
     def result(self) -> FineResult:
         """The run so far (all epochs once done)."""

@@ -57,7 +57,7 @@ def _seed(text: str) -> int:
 def _bench_epilog(experiment: type | None) -> str:
     """What ``bench --help`` lists besides the options: the experiments, the filters and
     the scenarios with a pipeline; with an experiment, its other settings (--set)."""
-    from aligngym.estimators.filters import filter_names
+    from aligngym.estimators.catalogue import filter_names
     from aligngym.scenarios.experiments import setup_for
     lines = ["experiments: " + ", ".join(experiment_names()), "filters: " + ", ".join(filter_names()),
              "scenarios with a pipeline: "
@@ -495,7 +495,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         raise ConfigError(f"--size must be HxW in pixels, e.g. 480x640, got {args.size!r}")
     check_size(size)
     if args.estimator:
-        from aligngym.estimators.filters import UnknownFilter, filter_entry
+        from aligngym.estimators.catalogue import UnknownFilter, filter_entry
         try:
             filter_entry(args.estimator)
         except UnknownFilter as exc:

@@ -38,8 +38,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from aligngym.estimators.filters import UnknownFilter, filter_entry, make_filter
+from aligngym.estimators.adaptation import PolicyTuning
 from aligngym.estimators.alignment import AlignmentRun
+from aligngym.estimators.catalogue import UnknownFilter, filter_entry, make_filter
+from aligngym.estimators.filters import UpdateReport
 from aligngym.estimators.metrics import misalignment
 from aligngym.estimators.model import whole_steps
 from aligngym.models.units import arcmin
@@ -293,6 +295,8 @@ class Cohort:
         self.run = AlignmentRun(self.filter, experiment.model(
             episodes, starts, filter_entry(env.estimator).model))
         self.observed = experiment.observed_states(self.run.model.layout)
+        self.report: UpdateReport | None = None
+        """The last epoch's update (``GaussianFilter.update``); None before the first."""
         self.ended = np.zeros(self.run.batch, bool)
         """Members whose episode has ended (their metrics given once)."""
         self.steps = env.episode_steps
@@ -308,12 +312,12 @@ class Cohort:
         """One filter epoch with each member's action (B, A), clipped already. Returns
         observations (B, OBS_SIZE), rewards, terminated, truncated (B,) and the infos."""
         env, run = self.env, self.run
-        if env._fading:
-            self.filter.adaptation.retune(floor=10.0 ** actions[:, 3])
+        tuning = PolicyTuning(floor=10.0 ** actions[:, 3]) if env._fading else None
         mis = env._mistuning
-        run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * actions[:, 0]),
-                          mis["accel_noise"] * 10.0 ** (2 * actions[:, 1])),
-                 r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]))
+        self.report = run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * actions[:, 0]),
+                                        mis["accel_noise"] * 10.0 ** (2 * actions[:, 1])),
+                               r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]),
+                               tuning=tuning)
         errors = self.attitude_errors()
         diverged = run.filt.health.diverged.copy()
         terminated = diverged
@@ -339,11 +343,12 @@ class Cohort:
         run, filt, space = self.run, self.filter, self.env.single_observation_space
         obs = np.zeros((run.batch, OBS_SIZE))
         first = INNOVATIONS.start
-        if filt.innovation is not None:
+        report = self.report
+        if report is not None:
             with np.errstate(divide="ignore", invalid="ignore"):
-                e = filt.innovation / np.sqrt(np.diagonal(filt.S, axis1=-2, axis2=-1))
+                e = report.innovation / np.sqrt(np.diagonal(report.S, axis1=-2, axis2=-1))
             m = min(e.shape[-1], INNOVATIONS.stop - first)
-            obs[:, first:first + m] = np.where(filt.valid, e, 0.0)[:, :m]
+            obs[:, first:first + m] = np.where(report.valid, e, 0.0)[:, :m]
         sub = self.observed
         diag = np.diagonal(filt.P, axis1=-2, axis2=-1)[:, sub]
         diag0 = np.diagonal(run.P[:, 0], axis1=-2, axis2=-1)[:, sub]
@@ -373,7 +378,7 @@ class AlignmentEnv(EnvCore, gym.Env):
     scenario: scenario name or .toml path (any file in ``scenarios/data/``: one that
     names its experiment runs its default setup, a ``*-paper`` file its experiment's
     paper setup, as ``bench EXPERIMENT --setup paper``); estimator: filter name
-    (``estimators.filters.FILTERS``); episode_length: fine-alignment duration, s;
+    (``estimators.catalogue.FILTERS``); episode_length: fine-alignment duration, s;
     epoch_length: filter epoch, s; render_mode: None or "rgb_array"; video_path: with
     "rgb_array", write each episode's frames to this MP4 file; mistuning: variance
     multipliers applied to the filter's tuning before the agent acts ({"gyro_noise",
@@ -419,7 +424,7 @@ class AlignmentEnv(EnvCore, gym.Env):
         super().reset(seed=seed)
         episode_seed, self._episode, self._start_error = self._begin(options, self.np_random)
         self._cohort = Cohort(self, [self._episode], self._start_error[None])
-        self._run, self._filter = self._cohort.run, self._cohort.filter
+        self._run = self._cohort.run
         self._episode_seed = episode_seed
         self._over = False
         self._frames = []

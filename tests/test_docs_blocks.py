@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 import aligngym
-from aligngym.estimators.filters import FILTERS
+from aligngym.estimators.catalogue import FILTERS
 
 ROOT = Path(__file__).resolve().parents[1]
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```\n", re.S | re.M)

@@ -250,14 +250,14 @@ def test_observation_holds_the_whole_innovation(env_id, measured):
     env.reset(seed=3)
     for _ in range(5):
         obs = env.step(np.zeros(env.action_space.shape, np.float32))[0]
-    filt = env.unwrapped._filter
-    e = filt.innovation[0] / np.sqrt(np.diagonal(filt.S[0]))
-    expected = np.where(filt.valid[0], np.clip(e, -10, 10), 0.0)
+    report = env.unwrapped._cohort.report       # what the last update computed
+    e = report.innovation[0] / np.sqrt(np.diagonal(report.S[0]))
+    expected = np.where(report.valid[0], np.clip(e, -10, 10), 0.0)
     assert e.size == measured
     np.testing.assert_array_equal(obs[INNOVATIONS][:measured], expected.astype(np.float32))
     assert not obs[INNOVATIONS][measured:].any()
     if env_id == "aligngym/Figure8Gps-v1":   # standing still: no GPS heading
-        assert not filt.valid[0, 6] and obs[6] == 0.0 and np.all(obs[:6] != 0.0)
+        assert not report.valid[0, 6] and obs[6] == 0.0 and np.all(obs[:6] != 0.0)
     env.close()
 
 

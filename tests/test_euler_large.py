@@ -11,7 +11,7 @@ from aligngym.estimators.euler_large import (EulerLargeMisalignmentModel, Paper0
                                     rk4_step, small_angle_dynamics, stack_ins_inputs,
                                     stack_integrals, state_vector, static_base_ins,
                                     static_base_integrals, true_state)
-from aligngym.estimators.filters import make_filter
+from aligngym.estimators.catalogue import make_filter
 from aligngym.models.attitude import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
 from aligngym.models.earth import OMEGA_IE, normal_gravity
 from aligngym.models.units import arcmin, deg, deg_per_h, ug

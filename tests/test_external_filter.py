@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import aligngym
-from aligngym.estimators.filters import FILTERS, UnknownFilter, filter_entry
+from aligngym.estimators.catalogue import FILTERS, UnknownFilter, filter_entry
 from aligngym.scenarios.campaign import run_campaign
 
 

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from aligngym.estimators.filters import filter_entry, filter_names
+from aligngym.estimators.catalogue import filter_entry, filter_names
 from aligngym.scenarios.campaign import run_filter
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.experiments import experiment

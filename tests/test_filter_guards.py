@@ -8,7 +8,8 @@ import pytest
 
 from aligngym.estimators import filters as filters_module
 from aligngym.estimators.adaptation import AdaptationPolicy, Adjustment, NoAdaptation
-from aligngym.estimators.filters import FilterHealth, GaussianFilter, make_filter
+from aligngym.estimators.filters import FilterHealth, GaussianFilter
+from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.model import Observation, Transition
 from aligngym.estimators.rules import LinearizationRule, UnscentedRule
 
@@ -74,15 +75,14 @@ def run(rule=None, policy=None, z=Z, fn=False, predictions=1, joseph=True):
     f.reset(X0, P0)
     for _ in range(predictions):
         f.predict(transition(fn))
-    f.update(observation(z, fn))
-    return f
+    return f, f.update(observation(z, fn))
 
 
 @pytest.mark.parametrize("fn", [False, True], ids=["matrix", "function"])
 def test_two_predictions_without_an_update_propagate_twice(fn):
     x1, P1 = predicted()
     x2, P2 = predicted(P1, x1)
-    f = run(rule=UnscentedRule() if fn else None, fn=fn, predictions=2)
+    f, report = run(rule=UnscentedRule() if fn else None, fn=fn, predictions=2)
     x, P = kf_update(x2, P2, Z)
     np.testing.assert_allclose(f.x, x, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(f.P, P, rtol=1e-9, atol=1e-12)
@@ -91,7 +91,7 @@ def test_two_predictions_without_an_update_propagate_twice(fn):
 @pytest.mark.parametrize("fn", [False, True], ids=["matrix", "function"])
 def test_the_policy_and_the_record_see_the_unadapted_innovation_S_and_H(fn):
     policy = Recorder(p_scale=3.0, r_scale=2.0)
-    f = run(rule=UnscentedRule() if fn else None, policy=policy, fn=fn)
+    f, report = run(rule=UnscentedRule() if fn else None, policy=policy, fn=fn)
     x_pred, P_pred = predicted()
     S = H @ P_pred @ np.swapaxes(H, -1, -2) + R
     innovation = Z - np.einsum("bij,bj->bi", H, x_pred)
@@ -99,19 +99,19 @@ def test_the_policy_and_the_record_see_the_unadapted_innovation_S_and_H(fn):
     np.testing.assert_allclose(ctx.S, S, rtol=1e-9)
     np.testing.assert_allclose(ctx.H, H, rtol=1e-9)   # statistical linearisation is exact
     np.testing.assert_allclose(ctx.innovation, innovation, rtol=1e-9)
-    np.testing.assert_allclose(f.predicted[0], innovation, rtol=1e-9)
-    np.testing.assert_allclose(f.predicted[1], S, rtol=1e-9)
+    np.testing.assert_allclose(report.test_innovation, innovation, rtol=1e-9)
+    np.testing.assert_allclose(report.test_S, S, rtol=1e-9)
     # ... while the update used the adapted ones
     x, P = kf_update(x_pred, 3.0 * P_pred, Z, Rm=2.0 * R)
     np.testing.assert_allclose(f.x, x, rtol=1e-9)
     np.testing.assert_allclose(f.P, P, rtol=1e-9)
-    np.testing.assert_allclose(f.S, 3.0 * S - 3.0 * R + 2.0 * R, rtol=1e-9)
+    np.testing.assert_allclose(report.S, 3.0 * S - 3.0 * R + 2.0 * R, rtol=1e-9)
 
 
 def test_an_episode_without_measurements_is_not_adapted():
     z = Z.copy()
     z[1] = np.nan
-    f = run(policy=Recorder(p_scale=3.0, r_scale=2.0), z=z)
+    f, report = run(policy=Recorder(p_scale=3.0, r_scale=2.0), z=z)
     x_pred, P_pred = predicted()
     np.testing.assert_allclose(f.P[1], P_pred[1], rtol=1e-12)     # not 3 P_pred
     np.testing.assert_allclose(f.x[1], x_pred[1], rtol=1e-12)
@@ -121,13 +121,13 @@ def test_an_episode_without_measurements_is_not_adapted():
 def test_a_rejected_component_is_the_update_without_it(fn):
     rejected = np.zeros((B, M), bool)
     rejected[0, 1] = rejected[2, 0] = True
-    f = run(rule=UnscentedRule() if fn else None, policy=Recorder(rejected=rejected), fn=fn)
+    f, report = run(rule=UnscentedRule() if fn else None, policy=Recorder(rejected=rejected), fn=fn)
     z = np.where(rejected, np.nan, Z)
     x, P = kf_update(*predicted(), z)
     np.testing.assert_allclose(f.x, x, rtol=1e-9)
     np.testing.assert_allclose(f.P, P, rtol=1e-9)
-    assert f.innovation[0, 1] == f.innovation[2, 0] == 0.0
-    assert not f.valid[0, 1] and not f.valid[2, 0] and f.valid[1].all()
+    assert report.innovation[0, 1] == report.innovation[2, 0] == 0.0
+    assert not report.valid[0, 1] and not report.valid[2, 0] and report.valid[1].all()
 
 
 @pytest.mark.parametrize("name", ["kf", "ukf", "ckf"])
@@ -138,11 +138,11 @@ def test_a_missing_component_with_a_correlated_R(name):
     f = make_filter(name)
     f.reset(X0, P0)
     f.predict(transition(fn=name != "kf"))
-    f.update(observation(z, fn=name != "kf"))
+    report = f.update(observation(z, fn=name != "kf"))
     x, P = kf_update(*predicted(), z)
     np.testing.assert_allclose(f.x, x, rtol=1e-9)
     np.testing.assert_allclose(f.P, P, rtol=1e-9, atol=1e-12)
-    assert f.innovation[0, 0] == f.innovation[3, 1] == 0.0
+    assert report.innovation[0, 0] == report.innovation[3, 1] == 0.0
 
 
 def wrap(a):
@@ -160,10 +160,10 @@ def test_angles_wrap_in_the_innovation_the_prediction_and_the_update():
     x_pred = 3.3 - 2 * np.pi
     np.testing.assert_allclose(f.x[0, 0], x_pred, rtol=1e-12)
     z = np.pi - 0.01
-    f.update(Observation(noise=np.full((1, 1, 1), 1e-8), fn=lambda x: x, angles=(0,),
+    report = f.update(Observation(noise=np.full((1, 1, 1), 1e-8), fn=lambda x: x, angles=(0,),
                          z=np.array([[z]])))
     innovation = z - x_pred - 2 * np.pi                  # -0.168 rad: the short way
-    np.testing.assert_allclose(f.predicted[0][0, 0], innovation, rtol=1e-9)
+    np.testing.assert_allclose(report.test_innovation[0, 0], innovation, rtol=1e-9)
     gain = 2e-4 / (2e-4 + 1e-8)
     np.testing.assert_allclose(f.x[0, 0], wrap(x_pred + gain * innovation), rtol=1e-9)
     assert f.x[0, 0] > 3.0                               # across +-pi, wrapped
@@ -296,7 +296,7 @@ def test_an_innovation_covariance_singular_to_working_precision_is_flagged(monke
         X[2], solved[2] = np.nan, False
         return X, solved
     monkeypatch.setattr(filters_module, "solve_each", singular_two)
-    f = run(policy=Recorder())
+    f, report = run(policy=Recorder())
     assert list(f.health.diverged) == [False, False, True, False]
     assert f.health.reason[2] == "innovation covariance singular"
     np.testing.assert_array_equal(f.x[2], predicted()[0][2])   # not updated
@@ -400,7 +400,7 @@ def test_an_adapted_prediction_nan_or_beyond_repair_is_flagged(monkeypatch):
 
 def test_filter_needs_is_the_union_when_rule_and_policy_need_the_same():
     from aligngym.estimators.adaptation import MeasurementAxisFading
-    from aligngym.estimators.filters import FILTERS, filter_needs, register_filter
+    from aligngym.estimators.catalogue import FILTERS, filter_needs, register_filter
     from aligngym.estimators.rules import CubatureRule
 
     class AxesCubature(CubatureRule):
@@ -420,12 +420,12 @@ def test_an_outage_of_the_whole_batch_leaves_the_prediction(name):
     f = make_filter(name)
     f.reset(X0, P0)
     f.predict(transition(fn))
-    f.update(observation(np.full((B, M), np.nan), fn=fn))
+    report = f.update(observation(np.full((B, M), np.nan), fn=fn))
     x_pred, P_pred = predicted()
     np.testing.assert_allclose(f.x, x_pred, rtol=1e-12)
     np.testing.assert_allclose(f.P, P_pred, rtol=1e-12)
-    assert not f.health.diverged.any() and not f.valid.any()
-    assert np.all(f.innovation == 0.0)
+    assert not f.health.diverged.any() and not report.valid.any()
+    assert np.all(report.innovation == 0.0)
 
 
 def test_a_nan_state_with_a_finite_covariance_is_flagged():
@@ -452,9 +452,9 @@ def test_a_diverged_episodes_record_is_inert():
     f.predict(transition())
     z = Z.copy()
     z[2, 1] = np.nan
-    f.update(observation(z))
-    assert not f.valid[2].any() and f.valid[[0, 1, 3]].all()
-    assert np.all(f.innovation[2] == 0.0)
+    report = f.update(observation(z))
+    assert not report.valid[2].any() and report.valid[[0, 1, 3]].all()
+    assert np.all(report.innovation[2] == 0.0)
 
 
 @pytest.mark.parametrize("name", ["kf", "ukf"])
@@ -477,3 +477,51 @@ def test_three_correlated_components_with_the_middle_one_missing(name):
     x, P = kf_update(*predicted(), z, H3, R3)
     np.testing.assert_allclose(f.x, x, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(f.P, P, rtol=1e-9, atol=1e-12)
+
+
+def test_the_update_returns_what_it_computed_and_leaves_only_its_state():
+    """The report: the posterior, the innovation and S the gain used (adapted), and the
+    NIS of the unadapted innovation over the components present, written out here per
+    episode; on the filter nothing but its state."""
+    z = Z.copy()
+    z[1, 0] = np.nan
+    f, report = run(policy=Recorder(p_scale=3.0, r_scale=2.0), z=z)
+    np.testing.assert_array_equal(report.x, f.x)
+    np.testing.assert_array_equal(report.P, f.P)
+    x_pred, P_pred = predicted()
+    for b in range(B):
+        keep = np.isfinite(z[b])
+        Hb = H[b][keep]
+        e = z[b][keep] - Hb @ x_pred[b]
+        S = Hb @ P_pred[b] @ Hb.T + R[b][np.ix_(keep, keep)]
+        np.testing.assert_allclose(report.nis[b], e @ np.linalg.solve(S, e), rtol=1e-9)
+        assert report.nis_dof[b] == keep.sum()
+        S_adapted = Hb @ (3.0 * P_pred[b]) @ Hb.T + 2.0 * R[b][np.ix_(keep, keep)]
+        np.testing.assert_allclose(report.S[b][np.ix_(keep, keep)], S_adapted, rtol=1e-9)
+    assert report.factors.shape == (B, 0)
+    assert set(vars(f)) == {"name", "rule", "adaptation", "joseph", "x", "P", "angles",
+                            "health", "_pending"}
+
+
+def test_a_retune_is_an_input_of_the_update():
+    """PolicyTuning given to update() is the policy retuned before it (one floor per
+    episode, which the factors then respect); a policy without fading factors refuses
+    it in one line."""
+    from aligngym.estimators.adaptation import PolicyTuning
+    floor = np.array([1.0, 4.0, 1.0, 9.0])
+    given, before = make_filter("sakf"), make_filter("sakf")
+    for f in (given, before):
+        f.reset(X0, P0)
+        f.predict(transition())
+    report = given.update(observation(), tuning=PolicyTuning(floor=floor))
+    before.adaptation.retune(floor)
+    expected = before.update(observation())
+    np.testing.assert_array_equal(given.x, before.x)
+    np.testing.assert_array_equal(given.P, before.P)
+    np.testing.assert_array_equal(report.factors, expected.factors)
+    assert np.all(report.factors[:, 0] >= floor) and report.factors[3, 0] == 9.0
+    kf = make_filter("kf")
+    kf.reset(X0, P0)
+    kf.predict(transition())
+    with pytest.raises(ValueError, match="adaptation 'none' has no fading factors"):
+        kf.update(observation(), tuning=PolicyTuning(floor=2.0))

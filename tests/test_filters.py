@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from aligngym.estimators.filters import FILTERS, UnknownFilter, make_filter
+from aligngym.estimators.catalogue import FILTERS, UnknownFilter, make_filter
 from aligngym.estimators.model import Observation, Transition
 
 
@@ -201,7 +201,7 @@ def test_the_level_and_order_ranges(name, ok):
 
 
 def test_filter_needs_joins_the_rule_and_the_policy():
-    from aligngym.estimators.filters import filter_needs, register_filter
+    from aligngym.estimators.catalogue import filter_needs, register_filter
     from aligngym.estimators.adaptation import MeasurementAxisFading
     from aligngym.estimators.rules import ReducedGaussHermiteRule
     register_filter("test-both-needs", lambda: ReducedGaussHermiteRule(3),
@@ -214,7 +214,7 @@ def test_filter_needs_joins_the_rule_and_the_policy():
 
 @pytest.mark.parametrize("name", ["", "has space", "a,b", "a:b", 3])
 def test_register_filter_refuses_a_bad_name(name):
-    from aligngym.estimators.filters import register_filter
+    from aligngym.estimators.catalogue import register_filter
     from aligngym.estimators.rules import CubatureRule
     with pytest.raises(ValueError, match="a non-empty name without spaces"):
         register_filter(name, CubatureRule)
@@ -222,14 +222,14 @@ def test_register_filter_refuses_a_bad_name(name):
 
 @pytest.mark.parametrize("name", ["kf", "sghkf-9", "ghkf-x"])
 def test_register_filter_refuses_a_built_in_name(name):
-    from aligngym.estimators.filters import register_filter
+    from aligngym.estimators.catalogue import register_filter
     from aligngym.estimators.rules import CubatureRule
     with pytest.raises(ValueError, match="is a built-in filter"):
         register_filter(name, CubatureRule)
 
 
 def test_register_filter_checks_its_factories_and_passes_rho_to_a_fading_one():
-    from aligngym.estimators.filters import register_filter
+    from aligngym.estimators.catalogue import register_filter
     from aligngym.estimators.adaptation import NoAdaptation, SingleFadingFactor
     from aligngym.estimators.rules import CubatureRule
     with pytest.raises(TypeError, match="must be factories"):
@@ -261,7 +261,7 @@ def test_register_filter_checks_its_factories_and_passes_rho_to_a_fading_one():
 
 
 def user_entry():
-    from aligngym.estimators.filters import FilterEntry
+    from aligngym.estimators.catalogue import FilterEntry
     from aligngym.estimators.adaptation import NoAdaptation
     from aligngym.estimators.rules import CubatureRule
     return FilterEntry(CubatureRule, NoAdaptation, "an entry")

@@ -239,7 +239,7 @@ def test_paper004_classic_ukf_lands_inside_its_sigma_on_ideal_data(monkeypatch):
     the reset's P <- G P G^T (ALGORITHMS 6.8 corrected) both end inside their sigma,
     15.1' and 15.9' (0.66 and 0.71 sigma): the rows' sensitivity no longer shows."""
     from aligngym.estimators.alignment import run_alignment
-    from aligngym.estimators.filters import make_filter
+    from aligngym.estimators.catalogue import make_filter
     from aligngym.estimators.metrics import misalignment
 
     dt, S, K = 0.5, 2, 150

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from aligngym.estimators.adaptation import NoAdaptation
-from aligngym.estimators.filters import FILTERS, GaussianFilter, filter_entry
+from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.catalogue import FILTERS, filter_entry
 from aligngym.estimators.model import Observation, Transition
 from aligngym.estimators.rules import (GaussHermiteRule, LinearizationRule,
                                        ReducedGaussHermiteRule, SparseGridGaussHermiteRule,

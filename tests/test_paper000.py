@@ -217,7 +217,7 @@ def test_strong_tracking_over_a_settling_sequence_waits_for_the_filter_to_settle
     lam, ratio = _settling_factors(SingleFadingFactor(warm_up=10.0))
     assert np.all(lam[:, :10] == 1.0)                              # no fading in the warm-up
     assert 0.8 < ratio[12:].mean() < 1.4 and ratio[12:].max() < 2.5, ratio
-    from aligngym.estimators.filters import make_filter
+    from aligngym.estimators.catalogue import make_filter
     sgkf = make_filter("sgkf").adaptation                          # the catalogue's sgkf
     assert sgkf.warm_up == 60.0 and sgkf.in_motion_only
 

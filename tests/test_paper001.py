@@ -311,8 +311,9 @@ def test_robust_adaptive_factor_weights_and_rejection():
         filt = GaussianFilter("rakf", LinearizationRule(), RobustAdaptive())
         filt.reset(np.zeros((1, 6)), P0)
         filt.predict(Transition(noise=np.eye(6)[None] * 0.01, matrix=Phi))
-        filt.update(Observation(noise=np.eye(3)[None], matrix=H, z=z, motion=np.array([True])))
-        runs.append((filt.x.copy(), filt.P.copy(), filt.factors.copy()))
+        report = filt.update(Observation(noise=np.eye(3)[None], matrix=H, z=z,
+                                         motion=np.array([True])))
+        runs.append((filt.x.copy(), filt.P.copy(), report.factors.copy()))
     assert runs[0][2][0, 2] == 0.0                      # the 1000-sigma residual: weight 0
     np.testing.assert_allclose(runs[0][0], runs[1][0], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(runs[0][1], runs[1][1], rtol=1e-12, atol=1e-15)

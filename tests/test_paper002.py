@@ -14,7 +14,7 @@ from scipy.stats import chi2
 from aligngym.estimators.alignment import run_alignment
 from aligngym.estimators.euler_large import (PAPER002, C_p_n, EulerLargeMisalignmentModel,
                                     SmallAngleModel, stack_integrals)
-from aligngym.estimators.filters import make_filter
+from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.metrics import static_alignment_floor
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import arcmin, deg, deg_per_h, ug

@@ -247,7 +247,7 @@ def test_stukf_aligns_the_moving_car_from_60_degrees(figure8_inputs):
     sit at sqrt(15) x 45-60 deg, past pi, and it fails) on the transformed model, closed
     loop: from (10, -10, 60) deg to 0.05 deg in 170 s (measured 0.004-0.011 deg)."""
     from aligngym.estimators.alignment import run_alignment
-    from aligngym.estimators.filters import filter_entry, make_filter
+    from aligngym.estimators.catalogue import filter_entry, make_filter
     from aligngym.estimators.metrics import misalignment
     from aligngym.estimators.rotation_vector import RotationVectorGnssModel
     from aligngym.models.units import deg

@@ -83,7 +83,7 @@ def main(argv=None) -> int:
         from aligngym.estimators.alignment import run_alignment
         from aligngym.estimators.euler_large import (C_p_n, EulerLargeMisalignmentModel,
                                                      stack_integrals)
-        from aligngym.estimators.filters import make_filter
+        from aligngym.estimators.catalogue import make_filter
         from aligngym.estimators.metrics import misalignment, static_alignment_floor
         from aligngym.models.attitude import euler_to_dcm
         from aligngym.models.units import arcmin, deg

@@ -46,7 +46,7 @@ def ms_per_epoch(filter_name: str) -> Callable[[object], float]:
 def rule_points(filter_name: str, states: int) -> Callable[[object], float]:
     """A Number: the points the filter's integration rule propagates for that many states."""
     def number(result) -> float:
-        from aligngym.estimators.filters import filter_entry
+        from aligngym.estimators.catalogue import filter_entry
         return float(filter_entry(filter_name).rule().point_count(states))
     return number
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.adaptation import OBSERVATION_FEATURES
-from aligngym.estimators.filters import UnknownFilter, filter_entry, filter_names, filter_needs
+from aligngym.estimators.catalogue import UnknownFilter, filter_entry, filter_names, filter_needs
 from aligngym.estimators.metrics import status_fractions
 from aligngym.estimators.model import FilterModel, StateLayout
 from aligngym.estimators.rules import MAX_POINTS

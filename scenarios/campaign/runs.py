@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from aligngym.estimators.alignment import FineResult, run_alignment
-from aligngym.estimators.filters import filter_entry, make_filter
+from aligngym.estimators.catalogue import filter_entry, make_filter
 from aligngym.estimators.metrics import StatusRule, convergence_time, euler_error, misalignment
 from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign.episodes import PreparedEpisode

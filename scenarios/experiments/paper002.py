@@ -20,7 +20,7 @@ import numpy as np
 from aligngym.estimators.euler_large import (LAYOUT, PAPER002, C_p_n, EulerLargeMisalignmentModel,
                                     Paper002Tuning, StaticBaseIntegrals,
                                     stack_integrals, static_base_integrals, true_state)
-from aligngym.estimators.filters import make_filter
+from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.metrics import nees
 from aligngym.estimators.model import wrap_angle
 from aligngym.models.attitude import quat_to_dcm
