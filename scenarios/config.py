@@ -1,7 +1,9 @@
 """Scenario files (TOML, units in the key names) loaded into typed, validated configs."""
 from __future__ import annotations
 
+import difflib
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -171,6 +173,38 @@ def _key(section: str, name: str) -> str:
     return f"{section}.{name}{UNITS.get(name, '')}"
 
 
+_FIELD = re.compile(r"\b(" + "|".join(SECTIONS) + r")\.([A-Za-z_][A-Za-z0-9_]*)")
+
+
+def _as_written(message: str) -> str:
+    """A message from a sensor's or a world's own check with each ``section.field`` it
+    names written as the file writes the key (``motion.heave_period`` ->
+    ``motion.heave_period_s``)."""
+    return _FIELD.sub(lambda m: _key(m.group(1), m.group(2)) if m.group(2) in UNITS
+                      else m.group(0), message)
+
+
+def _unknown_choice(field: str, value: Any, choices) -> ConfigError:
+    """The one-line error for a value outside its choices: the closest choice if one is
+    close, then every choice."""
+    choices = sorted(choices)
+    close = (difflib.get_close_matches(value, choices, n=1, cutoff=0.6)
+             if isinstance(value, str) else [])
+    return ConfigError(f"{field} = {value!r} is unknown; "
+                       + (f"did you mean {close[0]!r}? " if close else "")
+                       + "valid choices: " + ", ".join(choices))
+
+
+def _not_a_parameter(field: str, written: str, valid: list[str], what: str = ""
+                     ) -> ConfigError:
+    """The one-line error for an unknown key: the field as written, the closest valid key
+    if one is close, then every valid key."""
+    close = difflib.get_close_matches(written, valid, n=1, cutoff=0.6)
+    return ConfigError(f"{field} is not a parameter{what}; "
+                       + (f"did you mean {close[0]}? " if close else "")
+                       + "valid: " + ", ".join(valid))
+
+
 class SettingError(ConfigError):
     """An experiment setting's value refused before any work: ``name`` (the setting, a
     field of the experiment), ``value`` and ``detail`` ("must be ..., got ..."; "{other}"
@@ -268,7 +302,7 @@ class ScenarioConfig:
         try:
             self.faults.check(self.duration)
         except ValueError as exc:
-            raise ConfigError(str(exc)) from None
+            raise ConfigError(_as_written(str(exc))) from None
         for when, *_ in (self.gps.outliers if self.gps is not None else ()):
             _check_range("gps.outliers time", when, 0.0, self.duration, "s")
         for when, duration, _ in (self.odometer.slips if self.odometer is not None else ()):
@@ -290,7 +324,7 @@ class ScenarioConfig:
             try:
                 self.motion.check()
             except ValueError as exc:
-                raise ConfigError(str(exc)) from None
+                raise ConfigError(_as_written(str(exc))) from None
             return
         m = self.motion
         if self.world == "static-platform":
@@ -339,9 +373,13 @@ def load_scenario(name_or_path: str) -> ScenarioConfig:
 def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     unknown = sorted(set(raw) - set(SECTIONS) - set(TOP_KEYS))
     if unknown:
+        close = difflib.get_close_matches(unknown[0], [*SECTIONS, *TOP_KEYS], n=1,
+                                          cutoff=0.6)
+        hint = ("" if not close else f"; did you mean [{close[0]}]?"
+                if close[0] in SECTIONS else f"; did you mean {close[0]}?")
         raise ConfigError(f"{source}: {unknown[0]!r} is neither a key ("
                           + ", ".join(TOP_KEYS) + ") nor a table ([" + "], [".join(SECTIONS)
-                          + "])")
+                          + "])" + hint)
     for key in TOP_KEYS:
         if key in raw and not isinstance(raw[key], str):
             raise ConfigError(f"{source}: {key} must be a string, got {raw[key]!r}")
@@ -358,12 +396,20 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         raise ConfigError(f"{source}: missing key world; valid choices: " + ", ".join(WORLDS))
     world = raw["world"]
     if world not in WORLDS:
-        raise ConfigError(f"world = {world!r} is unknown; valid choices: " + ", ".join(WORLDS))
+        raise _unknown_choice("world", world, WORLDS)
     origin, run, imu, motion = (section(s) for s in ("origin", "run", "imu", "motion"))
+    for name, table, keys in (("origin", origin, ("latitude", "longitude", "height")),
+                              ("run", run, ("duration", "imu_rate"))):
+        valid = [k + UNITS[k] for k in keys]
+        for key in table:
+            if key not in keys:
+                raise _not_a_parameter(f"{name}.{key}", key, valid)
+        for key in keys:
+            if key not in table:
+                raise ConfigError(f"{source}: missing key {_key(name, key)}")
     bias_frame = imu.pop("bias_frame", "sensor")
     if bias_frame not in BIAS_FRAMES:
-        raise ConfigError(f"imu.bias_frame = {bias_frame!r} is unknown; valid choices: "
-                          + ", ".join(BIAS_FRAMES))
+        raise _unknown_choice("imu.bias_frame", bias_frame, BIAS_FRAMES)
     preset, imu_spec = _imu_spec(imu)
     if world not in ("ship-prescribed", "ship-waves") and "indexer" in raw:
         raise ConfigError(f"[indexer] exists on the ship worlds only, not {world}")
@@ -452,8 +498,7 @@ def _imu_spec(table: dict[str, Any]) -> tuple[str, ImuSpec]:
     values = dict(table)
     preset = values.pop("preset", None)
     if preset is not None and preset not in IMU_PRESETS:
-        raise ConfigError(f"imu.preset = {preset!r} is unknown; valid choices: "
-                          + ", ".join(sorted(IMU_PRESETS)))
+        raise _unknown_choice("imu.preset", preset, IMU_PRESETS)
     if preset is None and not values:
         raise ConfigError("[imu] needs a preset (" + ", ".join(sorted(IMU_PRESETS))
                           + ") or datasheet keys (" + ", ".join(IMU_DATASHEET) + ")")
@@ -461,8 +506,8 @@ def _imu_spec(table: dict[str, Any]) -> tuple[str, ImuSpec]:
     changes: dict[str, dict[str, float]] = {"gyro": {}, "accel": {}}
     for key, value in values.items():
         if key not in IMU_DATASHEET:
-            raise ConfigError(f"imu.{key} is not a parameter; valid: bias_frame, preset, "
-                              + ", ".join(IMU_DATASHEET))
+            raise _not_a_parameter(f"imu.{key}", key,
+                                   ["bias_frame", "preset", *IMU_DATASHEET])
         triad, name, factor, bound = IMU_DATASHEET[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"imu.{key} must be a number, got {value!r}")
@@ -484,8 +529,7 @@ def _experiment_key(name: str) -> str:
     """The file's experiment key, checked against the registered experiments."""
     from aligngym.scenarios.registry import experiment_names
     if name and name not in experiment_names():
-        raise ConfigError(f"experiment = {name!r} is unknown; valid choices: "
-                          + ", ".join(experiment_names()))
+        raise _unknown_choice("experiment", name, experiment_names())
     return name
 
 
@@ -494,12 +538,15 @@ def _dataclass_from(cls, values: dict[str, Any], section: str):
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(values) - known)
     if unknown:
-        raise ConfigError(f"{section}.{unknown[0]} is not a parameter; valid: "
-                          + ", ".join(sorted(k + UNITS.get(k, "") for k in known)))
+        written = unknown[0] + UNITS.get(unknown[0], "")
+        raise _not_a_parameter(f"{section}.{written}", written,
+                               sorted(k + UNITS.get(k, "") for k in known))
     try:
         return cls(**values)
     except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{section}: {exc}") from None
+        message = _as_written(str(exc))
+        raise ConfigError(message if message.startswith(f"{section}.")
+                          else f"{section}: {message}") from None
 
 
 def _indexer(table: dict[str, Any]) -> IndexerSpec:
@@ -522,8 +569,8 @@ def _platform_motion(table: dict[str, Any]) -> StaticPlatformMotion:
     take the defaults)."""
     unknown = sorted(set(table) - set(_PLATFORM_KEYS))
     if unknown:
-        raise ConfigError(f"motion.{unknown[0]} is not a parameter of the static platform;"
-                          " valid: " + ", ".join(sorted(_PLATFORM_KEYS)))
+        raise _not_a_parameter(f"motion.{unknown[0]}", unknown[0], sorted(_PLATFORM_KEYS),
+                               " of the static platform")
     values = _to_si(table, "motion")
     return StaticPlatformMotion(**{_PLATFORM_KEYS[key + "_deg"]: value
                                    for key, value in values.items()})
@@ -536,8 +583,7 @@ def _sensor(values: dict[str, Any], presets: dict, cls, section: str):
     values = dict(values)
     preset = values.pop("preset", None)
     if preset is not None and preset not in presets:
-        raise ConfigError(f"{section}.preset = {preset!r} is unknown; valid choices: "
-                          + ", ".join(sorted(presets)))
+        raise _unknown_choice(f"{section}.preset", preset, presets)
     base = {f.name: getattr(presets[preset], f.name) for f in fields(cls)} if preset else {}
     if "pulses_per_rev" in values:
         values["pulses_per_rev"] = int(values["pulses_per_rev"])

@@ -162,7 +162,7 @@ def test_odometer_scale_error_and_slip():
 
 @pytest.mark.parametrize("old, new, expected", [
     ("radius_m = 100.0", "radius_m = 100.0", None),
-    ("radius_m = 100.0", "radius_m = -5.0", "motion.radius = -5 m is out of range"),
+    ("radius_m = 100.0", "radius_m = -5.0", "motion.radius_m = -5 m is out of range"),
     ("speed = 8.0", "speed = 30.0", "lateral acceleration; the car holds at most"),
     ('track = "ring"', 'track = "oval"', "valid choices: figure8, ring"),
 ])
