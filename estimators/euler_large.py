@@ -491,6 +491,20 @@ def midpoint_step(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
     return np.moveaxis(xs + T * _dynamics(xs + 0.5 * T * k1, *args), 0, -1)
 
 
+def _midpoint_points(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
+                     omega_ie: np.ndarray) -> np.ndarray:
+    """``midpoint_step`` of points x (B, P, 10) with each episode's inputs C_b_p (B, 3, 3),
+    f_p (B, 3), omega_ie (B, 3), compiled (``euler_kernel``; the same numbers)."""
+    from aligngym.estimators.euler_kernel import midpoint_points   # Numba: loaded when run
+    x = np.ascontiguousarray(x, dtype=float)
+    out = np.empty_like(x)
+    B = x.shape[0]
+    midpoint_points(x, float(T), np.ascontiguousarray(np.broadcast_to(C_b_p, (B, 3, 3))),
+                    np.ascontiguousarray(np.broadcast_to(f_p, (B, 3))),
+                    np.ascontiguousarray(np.broadcast_to(omega_ie, (B, 3))), out)
+    return out
+
+
 def midpoint_jacobian(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
                       omega_ie: np.ndarray) -> np.ndarray:
     """d(midpoint_step)/dx (..., 10, 10): I + T A(x_mid) (I + T/2 A(x))."""
@@ -612,6 +626,8 @@ class EulerLargeMisalignmentModel(FilterModel):
         Cb, fb, wb = C_b_p[:, None], f_p[:, None], omega[:, None]
 
         def fn(x: np.ndarray) -> np.ndarray:
+            if x.ndim == 3:    # points of every episode: the compiled loop, same numbers
+                return _midpoint_points(x, T, C_b_p, f_p, omega)
             return midpoint_step(x, T, Cb, fb, wb)
 
         def jacobian(x: np.ndarray) -> np.ndarray:

@@ -262,3 +262,26 @@ def test_process_noise_enters_as_the_biases_do():
                    - continuous_dynamics(x[0] - e, C_b_p, f_p, omega)) / 2e-6
     q = np.r_[[tuning.accel_psd] * 2, [tuning.gyro_psd] * 3]
     np.testing.assert_allclose(noise, (G * q) @ G.T * model.T, rtol=1e-6, atol=1e-24)
+
+
+def test_the_compiled_midpoint_step_is_the_array_one_to_the_bit():
+    """The model's process map on integration points runs the compiled loop
+    (``euler_kernel``): on random states, attitudes, forces, rates and steps, the same
+    numbers as ``midpoint_step``, signs of zeros included."""
+    from aligngym.estimators.euler_large import _midpoint_points
+    rng = np.random.default_rng(2)
+    for trial in range(60):
+        B, P = rng.integers(1, 5), rng.integers(1, 30)
+        x = rng.normal(size=(B, P, 10)) * rng.choice([1e-6, 1e-2, 1.0, 3.0])
+        x[..., 5:7] *= 1e-3
+        x[..., 7:] *= 1e-5
+        if trial % 5 == 0:
+            x[..., 5:] = -0.0
+        C = np.linalg.qr(rng.normal(size=(B, 3, 3)))[0]
+        f = rng.normal(size=(B, 3)) * [0.1, 0.1, 9.8]
+        w = rng.normal(size=(B, 3)) * 7e-5
+        T = float(rng.choice([0.01, 0.5, 1.0]))
+        expected = midpoint_step(x, T, C[:, None], f[:, None], w[:, None])
+        got = _midpoint_points(x, T, C, f, w)
+        np.testing.assert_array_equal(got, expected)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(expected))
