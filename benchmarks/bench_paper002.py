@@ -5,7 +5,8 @@ UnscentedKalmanFilter on the same model and data.
 1. Campaign cost: the episodes are prepared once (``prepare_all``, 2 worker processes,
    as ``run_campaign(..., workers=2)`` does); then per filter (ekf, ukf, sghkf-2,
    sghkf-4) what ``run_campaign`` runs for it (``run_filter``: the model for the batch
-   of all episodes, the filter in ``filter_threads`` threads, the analysis). Printed:
+   of all episodes, split over worker processes as ``campaign.filtering`` plans it, the
+   analysis). Printed:
    wall times, their total (= the campaign of the four filters), the filter's compute
    per epoch per episode, and the points per epoch (evaluations of the process map per
    episode).
@@ -35,7 +36,9 @@ from aligngym.estimators.alignment import AlignmentRun
 from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.model import wrap_angle
 from aligngym.models.units import arcmin, arcsec, deg
-from aligngym.scenarios.campaign import episode_seeds, filter_threads, prepare_all, run_filter
+from aligngym.scenarios.campaign import episode_seeds, prepare_all
+from aligngym.scenarios.campaign.engine import campaign_epochs
+from aligngym.scenarios.campaign.filtering import plan_filter_tasks, run_filters, usable_cores
 from aligngym.scenarios.experiments import experiment as make_experiment
 
 FILTERS = ("ekf", "ukf", "sghkf-2", "sghkf-4")
@@ -44,21 +47,23 @@ N = 10
 
 
 def campaign_cost(experiment, episodes, workers: int) -> float:
-    """Part 1: per filter what ``run_campaign`` runs (``run_filter``: model, filter in
-    ``filter_threads`` threads, analysis) on all episodes; wall times."""
+    """Part 1: per filter what ``run_campaign`` runs (``run_filters``: model, filter over
+    the planned chunks in worker processes, analysis) on all episodes; wall times."""
     B = len(episodes)
     start_error = experiment.start_errors(episodes)[START]
     total = 0.0
-    print(f"{'filter':9s}{'points':>7s}{'threads':>8s}{'wall s':>9s}"
+    print(f"{'filter':9s}{'points':>7s}{'chunks':>8s}{'wall s':>9s}"
           f"{'compute ms/epoch/episode':>26s}")
     for name in FILTERS:
-        threads = filter_threads(name, experiment, workers)
+        chunks = len(plan_filter_tasks([name], experiment, B, campaign_epochs(experiment),
+                                       min(workers, usable_cores())))
         t0 = time.perf_counter()
-        run = run_filter(name, START, start_error, episodes, experiment, threads)
+        (run,) = run_filters([name], {START: start_error}, episodes, experiment, workers,
+                             campaign_epochs(experiment))
         wall = time.perf_counter() - t0
         total += wall
         diverged = int(run.diverged.sum())
-        print(f"{name:9s}{make_filter(name).rule.point_count(N):7d}{threads:8d}{wall:9.2f}"
+        print(f"{name:9s}{make_filter(name).rule.point_count(N):7d}{chunks:8d}{wall:9.2f}"
               f"{run.result.seconds_per_epoch * 1e3 / B:26.3f}"
               + (f"   ({diverged} diverged)" if diverged else ""))
     return total
@@ -73,8 +78,8 @@ def tensor_cost(workers: int, episodes: int = 5, seconds: float = 60.0) -> None:
     start_error = experiment.start_errors(prepared)[START]
     for name in ("sghkf-4", "ghkf-3"):
         t0 = time.perf_counter()
-        run = run_filter(name, START, start_error, prepared, experiment,
-                         filter_threads(name, experiment, workers))
+        (run,) = run_filters([name], {START: start_error}, prepared, experiment, workers,
+                             campaign_epochs(experiment))
         wall = time.perf_counter() - t0
         print(f"{name:9s}{make_filter(name).rule.point_count(N):7d} points: "
               f"{run.result.seconds_per_epoch * 1e3 / episodes:8.2f} ms compute per "

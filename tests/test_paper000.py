@@ -41,7 +41,7 @@ def test_mounting_angles_out_of_range_are_rejected(tmp_path):
     text = (load_scenario.__globals__["DATA_DIR"] / "ring-road-odometer.toml").read_text()
     path = tmp_path / "bad.toml"
     path.write_text(text + "mounting_heading_deg = 12.0\n")
-    with pytest.raises(ConfigError, match=r"odometer.mounting_heading must be within \+-10 "
+    with pytest.raises(ConfigError, match=r"odometer.mounting_heading_deg must be within \+-10 "
                                           r"deg, got 12 deg"):
         load_scenario(str(path))
 

@@ -4,7 +4,8 @@ An ``Experiment`` (``experiment``) is run by ``run_campaign`` (``engine``): the 
 directory is claimed through its manifest (``manifest``), the episodes are prepared in
 parallel (``executors``: local processes or Ray) and written to disk one at a time,
 atomically (``episodes``), so an interrupted campaign keeps what finished and ``resume``
-continues it; the filters then run batched over all episodes (``runs``);
+continues it; the filters then run batched over all episodes, alongside each other in
+worker processes (``filtering``, ``runs``);
 ``scenarios.report`` writes the tidy table, time series, plots and JSON.
 """
 from aligngym.scenarios.campaign.engine import run_campaign
@@ -13,10 +14,11 @@ from aligngym.scenarios.campaign.episodes import (GnssEpisode, PreparedEpisode, 
 from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
 from aligngym.scenarios.campaign.experiment import (AXES, CampaignResult, Experiment, FilterRun,
                                                     fine_summary, format_fine_table, setting)
+from aligngym.scenarios.campaign.filtering import run_filters
 from aligngym.scenarios.campaign.runs import (analyse_run, concatenate_results, episode_metrics,
-                                              filter_threads, run_filter)
+                                              run_filter)
 
 __all__ = ["AXES", "EXECUTORS", "CampaignResult", "Experiment", "FilterRun", "GnssEpisode",
            "PreparedEpisode", "analyse_run", "concatenate_results", "episode_metrics",
-           "episode_seeds", "filter_threads", "fine_summary", "format_fine_table",
-           "prepare_all", "run_campaign", "run_filter", "setting", "simulate_screened"]
+           "episode_seeds", "fine_summary", "format_fine_table", "prepare_all",
+           "run_campaign", "run_filter", "run_filters", "setting", "simulate_screened"]

@@ -8,12 +8,11 @@ import sys
 from pathlib import Path
 
 from aligngym.estimators.model import whole_steps
-from aligngym.scenarios.interrupts import raise_if_interrupted
 from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
 from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
 from aligngym.scenarios.campaign.manifest import campaign_lock, check_manifest
-from aligngym.scenarios.campaign.runs import filter_threads, run_filter_starts
+from aligngym.scenarios.campaign.filtering import run_filters
 from aligngym.scenarios.config import ConfigError
 
 
@@ -137,10 +136,7 @@ def _run(experiment: Experiment, episodes: int, seed: int, filters: list[str],
                            address)
     result = CampaignResult(experiment, seeds, prepared, experiment.start_errors(prepared),
                             seed=seed)
-    from tqdm import tqdm          # after the checks: their errors answer at once
     starts = {s: result.start_errors[s] for s in experiment.starts}
-    for name in tqdm(filters, disable=not progress, desc="filters"):
-        raise_if_interrupted()
-        result.runs += run_filter_starts(name, starts, prepared, experiment,
-                                         filter_threads(name, experiment, workers))
+    result.runs += run_filters(filters, starts, prepared, experiment, workers,
+                               campaign_epochs(experiment), progress)
     return result

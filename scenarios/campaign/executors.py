@@ -8,6 +8,7 @@ import sys
 import zipfile
 import zlib
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from pathlib import Path
 
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
@@ -67,15 +68,33 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
     return [done[s] for s in seeds]
 
 
+def usable_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:                      # no affinity on this platform
+        return os.cpu_count() or 1
+
+
 def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
                           workers: int) -> None:
-    """Local worker processes (which ignore Ctrl-C); on an interruption or an error the
-    pool is stopped at once, the finished episodes being saved already."""
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_interrupt)
-    try:
+    """Local worker processes (which ignore Ctrl-C), no more than the cores (more would
+    only share them); on an interruption or an error the pool is stopped at once, the
+    finished episodes being saved already."""
+    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, usable_cores(), len(seeds))),
+                               initializer=ignore_interrupt)
+    with stopped_on_error(pool):
         futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
         for fut in as_completed(futures):
             finish(futures[fut], fut.result())
+
+
+@contextmanager
+def stopped_on_error(pool: ProcessPoolExecutor):
+    """Shut the pool down when the block ends; on an interruption or an error stop it at
+    once (queued tasks cancelled, running workers terminated) and re-raise."""
+    try:
+        yield pool
     except BaseException:
         running = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
@@ -101,7 +120,7 @@ def load_checked(episode_class: type, path: Path, seed: int) -> PreparedEpisode 
     return None
 
 
-def _ignore_interrupt() -> None:
+def ignore_interrupt() -> None:
     """Worker processes leave Ctrl-C to the parent (which stops them): no traceback from
     every worker."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)

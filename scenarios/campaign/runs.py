@@ -59,18 +59,11 @@ def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
     more than one); seconds_per_epoch is shared in proportion. With threads > 1 the batch
     is split into that many chunks run in threads (NumPy releases the GIL in its array
     loops), with the same result. model_options go to ``experiment.model``."""
-    names = list(start_errors)
-    B = len(episodes)
-    starts = np.concatenate([np.broadcast_to(np.asarray(start_errors[s], dtype=float), (B, 3))
-                             for s in names])
-    variant = filter_entry(name).model
-    everything = [episodes[i % B] for i in range(B * len(names))]
-    chunks = [c for c in np.array_split(np.arange(len(everything)), max(1, threads)) if c.size]
+    members, starts = member_batch(start_errors, episodes)
+    chunks = [c for c in np.array_split(np.arange(len(members)), max(1, threads)) if c.size]
 
     def run_chunk(idx: np.ndarray) -> FineResult:
-        filt = make_filter(name, **experiment.filter_options())
-        return run_alignment(filt, experiment.model([everything[i] for i in idx],
-                                                    starts[idx], variant, **model_options))
+        return run_members(name, idx, members, starts, experiment, **model_options)
 
     if len(chunks) == 1:
         result = run_chunk(chunks[0])
@@ -78,8 +71,34 @@ def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
         from concurrent.futures import ThreadPoolExecutor
         with ThreadPoolExecutor(len(chunks)) as pool:
             result = concatenate_results(list(pool.map(run_chunk, chunks)))
+    return analyse_starts(name, list(start_errors), result, episodes, experiment)
+
+
+def member_batch(start_errors: dict[str, np.ndarray], episodes: list[PreparedEpisode]
+                 ) -> tuple[list[PreparedEpisode], np.ndarray]:
+    """The batch of episodes x starts (each start's B episodes in turn) and each
+    member's start error (B x starts, 3) rad."""
+    B = len(episodes)
+    starts = np.concatenate([np.broadcast_to(np.asarray(error, dtype=float), (B, 3))
+                             for error in start_errors.values()])
+    return [episodes[i % B] for i in range(B * len(start_errors))], starts
+
+
+def run_members(name: str, index: np.ndarray, members: list[PreparedEpisode],
+                starts: np.ndarray, experiment: Experiment, **model_options: Any
+                ) -> FineResult:
+    """The named filter over the members ``index`` of a batch (``member_batch``)."""
+    filt = make_filter(name, **experiment.filter_options())
+    return run_alignment(filt, experiment.model([members[i] for i in index], starts[index],
+                                                filter_entry(name).model, **model_options))
+
+
+def analyse_starts(name: str, start_names: list[str], result: FineResult,
+                   episodes: list[PreparedEpisode], experiment: Experiment) -> list[FilterRun]:
+    """One FilterRun per start (in order) from a whole batch's result."""
+    B = len(episodes)
     return [analyse_run(name, s, batch_slice(result, slice(k * B, (k + 1) * B)), episodes,
-                        experiment) for k, s in enumerate(names)]
+                        experiment) for k, s in enumerate(start_names)]
 
 
 def batch_slice(result: FineResult, index: slice) -> FineResult:
@@ -95,13 +114,6 @@ def batch_slice(result: FineResult, index: slice) -> FineResult:
                       series={k: v[index] for k, v in result.series.items()},
                       nis=None if result.nis is None else result.nis[index],
                       nis_dof=None if result.nis_dof is None else result.nis_dof[index])
-
-
-def filter_threads(name: str, experiment: Experiment, workers: int) -> int:
-    """Threads worth giving a filter: all workers for rules with >= 100 points per
-    episode (their array work dominates), one otherwise (thread overhead would)."""
-    points = filter_entry(name).rule().point_count(experiment.state_count)
-    return workers if points >= 100 else 1
 
 
 def concatenate_results(parts: list[FineResult]) -> FineResult:

@@ -1,0 +1,146 @@
+"""The filter phase of a campaign: every filter from every start over the whole batch of
+episodes, planned as tasks (a filter on a chunk of the batch) and run in local worker
+processes alongside each other.
+
+Batching amortises the per-epoch cost of the Python and NumPy calls over the episodes,
+so a batch is split only where each chunk keeps enough integration points per epoch
+(``MIN_CHUNK_POINTS``), never into more chunks than there are processes, and the
+processes never outnumber the cores: asking for more workers cannot make a run slower.
+A campaign whose filters are little work (``PARALLEL_MIN_WORK``) runs them here, one
+after another, as does a machine without ``fork``. Each run is the one a single batch
+gives, to the bit: the episodes of a batch are independent.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+
+import numpy as np
+
+from aligngym.estimators.alignment import FineResult
+from aligngym.estimators.catalogue import filter_entry
+from aligngym.scenarios.campaign.episodes import PreparedEpisode
+from aligngym.scenarios.campaign.executors import (ignore_interrupt, stopped_on_error,
+                                                   usable_cores)
+from aligngym.scenarios.campaign.experiment import Experiment, FilterRun
+from aligngym.scenarios.campaign.runs import (analyse_starts, concatenate_results,
+                                              member_batch, run_members)
+from aligngym.scenarios.interrupts import raise_if_interrupted
+
+EPOCH_OVERHEAD_POINTS = 5000
+"""The per-epoch cost of a filter step that does not grow with the batch, in integration
+points (one evaluation of the model's map at one point): measured on paper 002's model,
+the UKF at a batch of 3 (63 points) takes 1.4 ms an epoch and sghkf-4 0.27 us per point
+more, so the fixed part is about 5000 points' worth."""
+MIN_CHUNK_POINTS = 4 * EPOCH_OVERHEAD_POINTS
+"""Points per epoch a chunk of a batch keeps at least (its fixed cost at most a fifth of
+its work): sghkf-4 (1981 points) splits in two from 21 members on, a UKF of 21 points
+from 1905."""
+PARALLEL_MIN_WORK = 4e6
+"""Point-epochs (with each task's fixed cost, ``task_work``) below which the filters run
+in this process: starting workers and returning their runs costs about what 1 s of
+filtering does."""
+
+
+@dataclass(frozen=True)
+class FilterTask:
+    """One filter over the members ``index`` of the batch (episodes x starts); work: its
+    point-epochs, fixed cost included (``task_work``)."""
+
+    name: str
+    index: np.ndarray
+    work: float
+
+
+def task_work(points: int, members: int, epochs: int) -> float:
+    """Point-epochs of a filter of ``points`` per member over ``members`` for ``epochs``
+    epochs, its fixed per-epoch cost included."""
+    return float(epochs) * (EPOCH_OVERHEAD_POINTS + members * points)
+
+
+def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
+                      epochs: int, processes: int) -> list[FilterTask]:
+    """The tasks of a campaign's filter phase: each filter's batch of ``members`` in as
+    many chunks as the processes allow and each chunk's points (``MIN_CHUNK_POINTS``)
+    justify; in filter order, chunks in member order."""
+    tasks = []
+    for name in filters:
+        points = filter_entry(name).rule().point_count(experiment.state_count)
+        chunks = int(max(1, min(processes, members * points // MIN_CHUNK_POINTS, members)))
+        for index in np.array_split(np.arange(members), chunks):
+            tasks.append(FilterTask(name, index, task_work(points, index.size, epochs)))
+    return tasks
+
+
+_SHARED: tuple | None = None
+"""(experiment, members, starts) of the filter phase in progress: forked workers inherit
+it, so that a task carries only a filter name and member indices."""
+
+
+def _run_task(name: str, index: np.ndarray) -> FineResult:
+    experiment, members, starts = _SHARED
+    return run_members(name, index, members, starts, experiment)
+
+
+def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
+                episodes: list[PreparedEpisode], experiment: Experiment, workers: int,
+                epochs: int, progress: bool = False) -> list[FilterRun]:
+    """Every filter from every start (name -> error, rad) over the episodes, as
+    ``run_filter_starts`` would give them one after another (the same runs, in filter then
+    start order), with at most ``workers`` processes (and the cores); epochs: the fine
+    run's filter epochs, to plan the work."""
+    from tqdm import tqdm
+
+    global _SHARED
+    members, starts = member_batch(start_errors, episodes)
+    processes = max(1, min(workers, usable_cores()))
+    tasks = plan_filter_tasks(filters, experiment, len(members), epochs, processes)
+    parallel = (processes > 1 and len(tasks) > 1 and sys.platform.startswith("linux")
+                and sum(t.work for t in tasks) >= PARALLEL_MIN_WORK)
+    results: dict[int, FineResult] = {}
+    bar = tqdm(total=len(tasks), disable=not progress, desc="filters")
+    _SHARED = (experiment, members, starts)
+    try:
+        if not parallel:
+            for i, task in enumerate(tasks):
+                raise_if_interrupted()
+                results[i] = _run_task(task.name, task.index)
+                bar.update()
+        else:
+            _run_in_processes(tasks, min(processes, len(tasks)), results, bar)
+    finally:
+        _SHARED = None
+        bar.close()
+    runs: list[FilterRun] = []
+    for name in filters:
+        parts = [results[i] for i, task in enumerate(tasks) if task.name == name]
+        result = parts[0] if len(parts) == 1 else concatenate_results(parts)
+        runs += analyse_starts(name, list(start_errors), result, episodes, experiment)
+    return runs
+
+
+def _run_in_processes(tasks: list[FilterTask], processes: int,
+                      results: dict[int, FineResult], bar) -> None:
+    """Forked workers (one BLAS thread each, Ctrl-C left to this process), the largest
+    tasks first; on an interruption or an error the pool is stopped at once."""
+    pool = ProcessPoolExecutor(max_workers=processes,
+                               mp_context=multiprocessing.get_context("fork"),
+                               initializer=_one_thread_worker,
+                               initargs=(ignore_interrupt,))
+    with stopped_on_error(pool):
+        order = sorted(range(len(tasks)), key=lambda i: -tasks[i].work)
+        futures = {pool.submit(_run_task, tasks[i].name, tasks[i].index): i for i in order}
+        for future in as_completed(futures):
+            raise_if_interrupted()
+            results[futures[future]] = future.result()
+            bar.update()
+
+
+def _one_thread_worker(then) -> None:
+    """A worker's BLAS and OpenMP pools limited to one thread (the processes already
+    take the cores), then ``then()``."""
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(1)
+    then()

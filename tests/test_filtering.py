@@ -1,0 +1,71 @@
+"""A campaign's filter phase (``scenarios.campaign.filtering``): its filters run alongside
+each other in worker processes, a batch split only into chunks that keep enough work,
+never more processes than cores, and every run the one a single batch gives, to the bit."""
+import numpy as np
+import pytest
+
+from aligngym.scenarios.campaign import episode_seeds, prepare_all
+from aligngym.scenarios.campaign import filtering
+from aligngym.scenarios.campaign.runs import run_filter_starts
+from aligngym.scenarios.experiments import experiment
+
+
+@pytest.fixture(scope="module")
+def short002():
+    exp = experiment("paper002", fine_duration=30.0)
+    episodes = prepare_all(exp, episode_seeds(5, 3), None, False, 1, progress=False)
+    errors = exp.start_errors(episodes)
+    return exp, episodes, {s: errors[s] for s in exp.starts}
+
+
+def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, monkeypatch):
+    """Forced into worker processes with sghkf-3 split over two of them: each run's
+    attitude, covariance, state, NIS and status equal those of the filters run one after
+    another on the whole batch."""
+    exp, episodes, starts = short002
+    monkeypatch.setattr(filtering, "PARALLEL_MIN_WORK", 0.0)
+    monkeypatch.setattr(filtering, "MIN_CHUNK_POINTS", 100)
+    monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
+    names = ["ekf", "sghkf-3"]
+    tasks = filtering.plan_filter_tasks(names, exp, len(episodes), 31, 2)
+    assert [(t.name, t.index.tolist()) for t in tasks] == [
+        ("ekf", [0, 1, 2]), ("sghkf-3", [0, 1]), ("sghkf-3", [2])]
+    runs = filtering.run_filters(names, starts, episodes, exp, workers=2, epochs=31)
+    serial = [run for name in names for run in run_filter_starts(name, starts, episodes, exp)]
+    assert [(r.filter, r.start) for r in runs] == [(r.filter, r.start) for r in serial]
+    for a, b in zip(runs, serial):
+        for field in ("C_s_n", "P", "x", "sigma_n", "nis", "diverged"):
+            np.testing.assert_array_equal(getattr(a.result, field), getattr(b.result, field))
+        np.testing.assert_array_equal(a.status, b.status)
+
+
+def test_the_plan_never_splits_below_the_chunk_size_nor_beyond_the_processes(short002):
+    """sghkf-4 (1981 points) splits from 21 members on, each chunk keeping at least
+    MIN_CHUNK_POINTS (to one member), into at most one chunk per process; the UKF (21
+    points) stays one batch below 1905 members; no chunk is empty."""
+    exp = short002[0]
+    points = {"sghkf-4": 1981, "ukf": 21}
+    for members in (1, 10, 11, 32, 64, 1000):
+        for processes in (1, 2, 16):
+            for name in points:
+                tasks = filtering.plan_filter_tasks([name], exp, members, 100, processes)
+                sizes = [t.index.size for t in tasks]
+                assert sum(sizes) == members and min(sizes) >= 1
+                assert len(tasks) <= processes
+                assert len(tasks) == 1 or (min(sizes) + 1) * points[name] >= \
+                    filtering.MIN_CHUNK_POINTS
+    assert len(filtering.plan_filter_tasks(["sghkf-4"], exp, 21, 100, 2)) == 2
+    assert len(filtering.plan_filter_tasks(["sghkf-4"], exp, 20, 100, 2)) == 1
+    assert len(filtering.plan_filter_tasks(["ukf"], exp, 1000, 100, 16)) == 1
+
+
+def test_more_workers_than_cores_start_no_more_processes(short002, monkeypatch):
+    """--workers 16 on a 2-core machine plans for 2 processes: the same chunks as
+    --workers 2."""
+    exp, episodes, starts = short002
+    seen = []
+    monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
+    monkeypatch.setattr(filtering, "plan_filter_tasks",
+                        lambda *args: seen.append(args[-1]) or [])
+    filtering.run_filters([], starts, episodes, exp, workers=16, epochs=31)
+    assert seen == [2]
