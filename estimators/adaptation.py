@@ -237,14 +237,14 @@ class SingleFadingFactor(InnovationFading):
         outlier_probability (NIS over the valid components) and is at most the
         outlier_run-th such epoch in a row: a sensor's outlier, not a change of state (a
         longer run is the state's, and fades P as usual)."""
-        from scipy.stats import chi2
+        from scipy.special import gammaincinv   # chi2.ppf's own formula, without scipy.stats
         e = np.where(valid, ctx.innovation, 0.0)
         S = np.where(valid[:, :, None] & valid[:, None, :], ctx.S,
                      np.eye(e.shape[-1])[None])
         x, solved = solve_each(S, e[..., None])   # a singular S: its filter flags it
         nis = np.einsum("bi,bi->b", e, x[..., 0])
         dof = np.maximum(valid.sum(-1), 1)
-        flagged = solved & (nis > chi2.ppf(self.outlier_probability, dof))
+        flagged = solved & (nis > 2 * gammaincinv(dof / 2, self.outlier_probability))
         if self._flagged_run.shape != flagged.shape:
             self._flagged_run = np.zeros(flagged.shape, int)
         self._flagged_run = np.where(flagged, self._flagged_run + 1, 0)
