@@ -4,12 +4,12 @@ UnscentedKalmanFilter on the same model and data.
 
 1. Campaign cost: the episodes are prepared once (``prepare_all``, 2 worker processes,
    as ``run_campaign(..., workers=2)`` does); then per filter (ekf, ukf, sghkf-2,
-   sghkf-4) what ``run_campaign`` runs for it (``run_filter``: the model for the batch
-   of all episodes, split over worker processes as ``campaign.filtering`` plans it, the
-   analysis). Printed:
-   wall times, their total (= the campaign of the four filters), the filter's compute
-   per epoch per episode, and the points per epoch (evaluations of the process map per
-   episode).
+   sghkf-4) alone what ``run_campaign`` runs for it (``run_filters``: the model for the
+   batch of all episodes, split over worker processes as ``campaign.filtering`` plans
+   it, the analysis). Printed: wall times, their total (the four filters one after
+   another; a campaign runs them alongside each other, so it takes less), the filter's
+   compute per epoch per episode, and the points per epoch (evaluations of the process
+   map per episode).
 2. Our UKF (``make_filter("ukf")``: alpha 1, beta 2, kappa 0) batched over the episodes
    versus ``filterpy.kalman.UnscentedKalmanFilter`` with ``MerweScaledSigmaPoints(10, 1,
    2, 0)`` (the same UT), episode by episode: fx calls our model's transition on one
@@ -213,7 +213,7 @@ def main() -> None:
           f"{prep:.2f} s wall ({prep / args.episodes * 1e3:.0f} ms per episode)")
     filters = campaign_cost(experiment, episodes, args.workers)
     print(f"total: {prep + filters:.1f} s wall (preparation {prep:.1f} s + filters "
-          f"{filters:.1f} s); compute = the filter's own time summed over its threads")
+          f"{filters:.1f} s); compute = the filter's own time summed over its chunks")
     print()
     tensor_cost(args.workers)
     print()

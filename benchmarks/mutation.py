@@ -301,9 +301,9 @@ def summarise(module: str, session: Path, seconds: float) -> dict:
                 counts["survived"] += 1
                 m = item.mutations[0]
                 key = f"{module}:{m.start_pos[0]}: " + _mutated_line(result.diff or "")
-                reason = (EQUIVALENT.get(key) or _by_text(key) or next(
+                reason = EQUIVALENT.get(key) or next(
                     (why for pattern, why in EQUIVALENT_PATTERNS if re.search(pattern, key)),
-                    ""))
+                    "")
                 survivors.append({"key": key, "diff": result.diff or "",
                                   "equivalent": reason})
             elif result.test_outcome == TestOutcome.INCOMPETENT:
@@ -316,17 +316,6 @@ def summarise(module: str, session: Path, seconds: float) -> dict:
     counts["kill_rate_non_equivalent"] = (counts["killed"] / competent if competent else None)
     return {"module": module, "tests": TARGETS[module][0], **counts,
             "seconds": round(seconds, 1), "survivors": survivors}
-
-
-def _by_text(key: str) -> str:
-    """The reason recorded for the same mutated line of the same module at another line
-    number (the module edited since the run that recorded it), if that text was recorded
-    once; "" otherwise."""
-    module, _, rest = key.partition(":")
-    text = rest.partition(": ")[2]
-    found = {why for k, why in EQUIVALENT.items()
-             if k.startswith(module + ":") and k.partition(": ")[2] == text}
-    return found.pop() if len(found) == 1 else ""
 
 
 def _mutated_line(diff: str) -> str:

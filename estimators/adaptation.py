@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.estimators.linalg import solve_each
+from aligngym.estimators.metrics import chi2_quantile
 
 FACTOR_AXES = ("measurement", "local-level")
 """Axes along which per-axis factors are formed: the measurement's own (the papers), or
@@ -237,14 +238,13 @@ class SingleFadingFactor(InnovationFading):
         outlier_probability (NIS over the valid components) and is at most the
         outlier_run-th such epoch in a row: a sensor's outlier, not a change of state (a
         longer run is the state's, and fades P as usual)."""
-        from scipy.special import gammaincinv   # chi2.ppf's own formula, without scipy.stats
         e = np.where(valid, ctx.innovation, 0.0)
         S = np.where(valid[:, :, None] & valid[:, None, :], ctx.S,
                      np.eye(e.shape[-1])[None])
         x, solved = solve_each(S, e[..., None])   # a singular S: its filter flags it
         nis = np.einsum("bi,bi->b", e, x[..., 0])
         dof = np.maximum(valid.sum(-1), 1)
-        flagged = solved & (nis > 2 * gammaincinv(dof / 2, self.outlier_probability))
+        flagged = solved & (nis > chi2_quantile(self.outlier_probability, dof))
         if self._flagged_run.shape != flagged.shape:
             self._flagged_run = np.zeros(flagged.shape, int)
         self._flagged_run = np.where(flagged, self._flagged_run + 1, 0)

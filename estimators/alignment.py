@@ -23,7 +23,7 @@ class FineResult:
     the state after feedback (with C_s_n and P: one consistent estimate); factors
     (B, K, k); diverged (B,), diverged_time (B,) s, diverged_reason; repairs (B,)
     predicted covariances repaired; seconds_per_epoch: wall time per epoch for these
-    episodes (a share of their batch's, ``batch_slice``; summed over thread chunks);
+    episodes (a share of their batch's, ``batch_slice``; summed over a batch's chunks);
     series: the model's own time series (``FilterModel.series``) up to the same epoch.
     """
 

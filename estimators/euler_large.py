@@ -494,7 +494,8 @@ def midpoint_step(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
 def _midpoint_points(x: np.ndarray, T: float, C_b_p: np.ndarray, f_p: np.ndarray,
                      omega_ie: np.ndarray) -> np.ndarray:
     """``midpoint_step`` of points x (B, P, 10) with each episode's inputs C_b_p (B, 3, 3),
-    f_p (B, 3), omega_ie (B, 3), compiled (``euler_kernel``; the same numbers)."""
+    f_p (B, 3), omega_ie (B, 3), compiled (``euler_kernel``: the same numbers where NumPy's
+    sine and cosine are the C library's)."""
     from aligngym.estimators.euler_kernel import midpoint_points   # Numba: loaded when run
     x = np.ascontiguousarray(x, dtype=float)
     out = np.empty_like(x)

@@ -46,11 +46,12 @@ class UpdateReport:
     """What one measurement update computed, for B episodes, n states and m measurement
     components (in the units of the model's measurement).
 
-    x (B, n), P (B, n, n): the posterior, the filter's new state (an episode frozen by a
-    divergence keeps its last). innovation (B, m): z - h(x) that the gain used, zero
-    where unused; S (B, m, m): its covariance after the adaptation (unit rows and
-    columns where unused); valid (B, m): the components used (present, not rejected by
-    the policy). test_innovation, test_S, test_valid: the same before the adaptation
+    x (B, n), P (B, n, n): the posterior, the filter's new state itself (not a copy: an
+    episode frozen by a divergence keeps its last). innovation (B, m): z - z_hat (z_hat
+    the rule's predicted measurement) that the gain used, zero where unused; S (B, m, m):
+    its covariance after the adaptation (unit rows and columns where unused); valid
+    (B, m): the components used (present, not rejected by the policy).
+    unadapted_innovation, unadapted_S, unadapted_valid: the same before the adaptation
     and any rejection, what an innovation test looks at. nis (B,): the normalised
     innovation squared of those, chi-square with nis_dof (B,) degrees of freedom for a
     consistent filter (NaN: no component, or the episode diverged before this update).
@@ -62,9 +63,9 @@ class UpdateReport:
     innovation: np.ndarray
     S: np.ndarray
     valid: np.ndarray
-    test_innovation: np.ndarray
-    test_S: np.ndarray
-    test_valid: np.ndarray
+    unadapted_innovation: np.ndarray
+    unadapted_S: np.ndarray
+    unadapted_valid: np.ndarray
     nis: np.ndarray
     nis_dof: np.ndarray
     factors: np.ndarray
@@ -172,7 +173,7 @@ class GaussianFilter:
         x_in, P_pred = self._harmless(self.x, self._repair(P_pred, t))
         z_hat, P_zz, P_xz = self.rule.moments(observation, x_in, P_pred)
         innovation = _innovation(observation, z, z_hat, valid)
-        test = (innovation, P_zz + R, valid)     # before adaptation and rejection
+        unadapted = (innovation, P_zz + R, valid)    # before adaptation and rejection
         adjustment = self.adaptation.adapt(self._context(observation, innovation, valid,
                                                          P_pred, P_zz, P_xz, PhiPPhi, Q, R))
         valid, innovation, R, P_pred, P_zz, P_xz = self._adapted(
@@ -180,9 +181,10 @@ class GaussianFilter:
         H, HP, S, R = self._innovation_covariance(observation, valid, R, P_pred, P_zz, P_xz)
         K = self._gain(S, HP, t)
         self._correct(observation, K, innovation, H, R, S, P_pred, t)
-        nis, dof = normalised_innovation_squared(*test, live_before)
+        nis, dof = normalised_innovation_squared(*unadapted, live_before)
         return UpdateReport(x=self.x, P=self.P, innovation=innovation, S=S, valid=valid,
-                            test_innovation=test[0], test_S=test[1], test_valid=test[2],
+                            unadapted_innovation=unadapted[0], unadapted_S=unadapted[1],
+                            unadapted_valid=unadapted[2],
                             nis=nis, nis_dof=dof, factors=adjustment.factors)
 
     def _predicted_covariance(self, P_pred: np.ndarray, t: float) -> np.ndarray:

@@ -10,6 +10,15 @@ from aligngym.models.earth import OMEGA_IE, normal_gravity
 from aligngym.models.units import arcmin as ARCMIN
 
 
+def chi2_quantile(probability: float | np.ndarray, dof: float | np.ndarray
+                  ) -> float | np.ndarray:
+    """The chi-square(dof) quantile 2 P^-1(dof / 2, probability) (P: the regularised lower
+    incomplete gamma function), as ``scipy.stats.chi2.ppf`` computes it (the same numbers,
+    a test) from ``scipy.special`` alone: scipy.stats takes a second to import."""
+    from scipy.special import gammaincinv
+    return 2 * gammaincinv(np.asarray(dof) / 2, probability)
+
+
 def misalignment(C_true: np.ndarray, C_est: np.ndarray) -> np.ndarray:
     """Misalignment phi (..., 3) rad, C_true = exp([phi x]) C_est (in C's target frame)."""
     return dcm_to_rotvec(C_true @ np.swapaxes(C_est, -1, -2))

@@ -77,7 +77,7 @@ def reset_jacobian(x_hat: np.ndarray, variant: str) -> np.ndarray:
     return G
 
 
-@dataclass
+@dataclass(frozen=True)
 class InsQuantities:
     """What the INS knows at one instant (broadcastable over episodes and points):
     C_b_p (..., 3, 3) its attitude; f_b (..., 3) its specific force, m/s^2 (compensated

@@ -179,9 +179,19 @@ _FIELD = re.compile(r"\b(" + "|".join(SECTIONS) + r")\.([A-Za-z_][A-Za-z0-9_]*)"
 def _as_written(message: str) -> str:
     """A message from a sensor's or a world's own check with each ``section.field`` it
     names written as the file writes the key (``motion.heave_period`` ->
-    ``motion.heave_period_s``)."""
-    return _FIELD.sub(lambda m: _key(m.group(1), m.group(2)) if m.group(2) in UNITS
-                      else m.group(0), message)
+    ``motion.heave_period_s``). A key in deg or arcsec is renamed only where the message
+    gives its value in that unit (a check that reports radians keeps the SI name: a
+    radian under a _deg key would mislead)."""
+    def written(match: re.Match) -> str:
+        name = match.group(2)
+        suffix = UNITS.get(name)
+        if suffix is None:
+            return match.group(0)
+        if _UNIT_NAMES.get(suffix, "") not in ("", "m", "s", "Hz") and (
+                f" {_UNIT_NAMES[suffix]}" not in message or "SI units" in message):
+            return match.group(0)
+        return _key(match.group(1), name)
+    return _FIELD.sub(written, message)
 
 
 def _unknown_choice(field: str, value: Any, choices) -> ConfigError:
@@ -403,7 +413,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         valid = [k + UNITS[k] for k in keys]
         for key in table:
             if key not in keys:
-                raise _not_a_parameter(f"{name}.{key}", key, valid)
+                written = key + UNITS.get(key, "")   # as the file wrote it
+                raise _not_a_parameter(f"{name}.{written}", written, valid)
         for key in keys:
             if key not in table:
                 raise ConfigError(f"{source}: missing key {_key(name, key)}")

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aligngym.estimators.metrics import chi2_quantile
 from aligngym.models.units import arcmin
 from aligngym.scenarios.atomic import save_figure
 
@@ -137,14 +138,6 @@ def nees_curves(result) -> list[NeesCurve]:
         curves.append(NeesCurve(run.filter, run.start, t[1:], mean, median,
                                 int(included.sum()), int((~included).sum())))
     return curves
-
-
-def chi2_quantile(probability: float, dof: float) -> float:
-    """The chi-square(dof) quantile 2 P^-1(dof / 2, probability), as ``scipy.stats.chi2.ppf``
-    computes it (the same numbers), from ``scipy.special`` alone: scipy.stats takes 1 s to
-    import, which every report would pay."""
-    from scipy.special import gammaincinv
-    return 2 * gammaincinv(dof / 2, probability)
 
 
 def mean_nees_band(dof: int, episodes: int, probability: float = 0.95

@@ -50,6 +50,11 @@ def edited(name: str, old: str, new: str, tmp_path) -> str:
      "'gpss' is neither a key (name, paper, experiment, world) nor a table ([origin], "
      "[run], [imu], [motion], [encoder], [odometer], [gps], [filter], [indexer], [faults])"
      "; did you mean [gps]?"),
+    ("ship-sway-rotary", r"^\[origin\]\n", "[origin]\nimu_rate_hz = 100.0\n",
+     "origin.imu_rate_hz is not a parameter; valid: latitude_deg, longitude_deg, height_m"),
+    # a check that reports radians keeps the SI name: no radian under a _deg_s key
+    ("usv-mems-swing", r"^slew_rate_deg_s = .*$", "slew_rate_deg_s = 400.0",
+     "indexer.slew_rate = 6.98132 is out of range (0, 6.28319] (SI units)"),
     # nothing close: no suggestion
     ("ship-sway-rotary", r"^\[motion\]\n", "[motion]\nzzz = 1.0\n",
      "motion.zzz is not a parameter; valid: "),

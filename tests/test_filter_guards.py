@@ -99,8 +99,8 @@ def test_the_policy_and_the_record_see_the_unadapted_innovation_S_and_H(fn):
     np.testing.assert_allclose(ctx.S, S, rtol=1e-9)
     np.testing.assert_allclose(ctx.H, H, rtol=1e-9)   # statistical linearisation is exact
     np.testing.assert_allclose(ctx.innovation, innovation, rtol=1e-9)
-    np.testing.assert_allclose(report.test_innovation, innovation, rtol=1e-9)
-    np.testing.assert_allclose(report.test_S, S, rtol=1e-9)
+    np.testing.assert_allclose(report.unadapted_innovation, innovation, rtol=1e-9)
+    np.testing.assert_allclose(report.unadapted_S, S, rtol=1e-9)
     # ... while the update used the adapted ones
     x, P = kf_update(x_pred, 3.0 * P_pred, Z, Rm=2.0 * R)
     np.testing.assert_allclose(f.x, x, rtol=1e-9)
@@ -163,7 +163,7 @@ def test_angles_wrap_in_the_innovation_the_prediction_and_the_update():
     report = f.update(Observation(noise=np.full((1, 1, 1), 1e-8), fn=lambda x: x, angles=(0,),
                          z=np.array([[z]])))
     innovation = z - x_pred - 2 * np.pi                  # -0.168 rad: the short way
-    np.testing.assert_allclose(report.test_innovation[0, 0], innovation, rtol=1e-9)
+    np.testing.assert_allclose(report.unadapted_innovation[0, 0], innovation, rtol=1e-9)
     gain = 2e-4 / (2e-4 + 1e-8)
     np.testing.assert_allclose(f.x[0, 0], wrap(x_pred + gain * innovation), rtol=1e-9)
     assert f.x[0, 0] > 3.0                               # across +-pi, wrapped

@@ -19,24 +19,46 @@ def short002():
 
 
 def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, monkeypatch):
-    """Forced into worker processes with sghkf-3 split over two of them: each run's
-    attitude, covariance, state, NIS and status equal those of the filters run one after
-    another on the whole batch."""
+    """Forced into worker processes with sghkf-3 split over two of them (the workers' own
+    pids seen): each run's every field, factors included, equals that of the filters run
+    one after another on the whole batch."""
+    import os
+
     exp, episodes, starts = short002
     monkeypatch.setattr(filtering, "PARALLEL_MIN_WORK", 0.0)
     monkeypatch.setattr(filtering, "MIN_CHUNK_POINTS", 100)
     monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
+    pids = []
+    real = filtering._run_in_processes
+
+    def spy(tasks, processes, results, bar):
+        real(tasks, processes, results, bar)
+        pids.extend(r.series.get("pid", [0])[0] for r in results.values())
+    monkeypatch.setattr(filtering, "_run_in_processes", spy)
+    run_members = filtering.run_members
+
+    def tagged(name, index, *args):          # runs in the worker (forked: it inherits
+        result = run_members(name, index, *args)    # this patch): its pid in the series
+        result.series["pid"] = np.full(index.size, os.getpid())
+        return result
+    monkeypatch.setattr(filtering, "run_members", tagged)
     names = ["ekf", "sghkf-3"]
     tasks = filtering.plan_filter_tasks(names, exp, len(episodes), 31, 2)
     assert [(t.name, t.index.tolist()) for t in tasks] == [
         ("ekf", [0, 1, 2]), ("sghkf-3", [0, 1]), ("sghkf-3", [2])]
     runs = filtering.run_filters(names, starts, episodes, exp, workers=2, epochs=31)
+    assert len(pids) == 3 and os.getpid() not in pids          # run in forked workers
     serial = [run for name in names for run in run_filter_starts(name, starts, episodes, exp)]
     assert [(r.filter, r.start) for r in runs] == [(r.filter, r.start) for r in serial]
     for a, b in zip(runs, serial):
-        for field in ("C_s_n", "P", "x", "sigma_n", "nis", "diverged"):
+        for field in ("C_s_n", "P", "x", "sigma_n", "nis", "nis_dof", "factors",
+                      "diverged", "diverged_time", "repairs"):
             np.testing.assert_array_equal(getattr(a.result, field), getattr(b.result, field))
+        assert a.result.diverged_reason == b.result.diverged_reason
+        for key, values in b.result.series.items():
+            np.testing.assert_array_equal(a.result.series[key], values)
         np.testing.assert_array_equal(a.status, b.status)
+        np.testing.assert_array_equal(a.error_n, b.error_n)
 
 
 def test_the_plan_never_splits_below_the_chunk_size_nor_beyond_the_processes(short002):
@@ -64,8 +86,10 @@ def test_more_workers_than_cores_start_no_more_processes(short002, monkeypatch):
     --workers 2."""
     exp, episodes, starts = short002
     seen = []
+    plan = filtering.plan_filter_tasks
     monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
     monkeypatch.setattr(filtering, "plan_filter_tasks",
-                        lambda *args: seen.append(args[-1]) or [])
-    filtering.run_filters([], starts, episodes, exp, workers=16, epochs=31)
-    assert seen == [2]
+                        lambda *args: seen.append(args[-1]) or plan(*args))
+    (run,) = filtering.run_filters(["ekf"], starts, episodes, exp, workers=16, epochs=31)
+    assert seen == [2] and run.filter == "ekf"
+    assert filtering.run_filters(["ekf"], starts, [], exp, workers=2, epochs=31) == []

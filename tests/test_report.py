@@ -217,14 +217,33 @@ def test_nees_bands_cover_95_percent_of_consistent_campaigns(dof, episodes):
 
 
 def test_the_bands_are_scipy_stats_numbers_without_importing_it():
-    """The quantiles come from scipy.special (scipy.stats costs a report 1 s to import):
-    the same numbers as scipy.stats' chi2 and beta, bit for bit."""
+    """The quantiles (the NEES bands', the gated strong-tracking factor's threshold) come
+    from scipy.special (scipy.stats costs a report 1 s to import): the same numbers as
+    scipy.stats' chi2 and beta, bit for bit, and a report's bands and a gated filter's
+    update leave scipy.stats unimported."""
+    import subprocess
+    import sys
+
     from scipy.stats import beta, chi2
 
-    from aligngym.scenarios.figures import chi2_quantile
+    from aligngym.estimators.metrics import chi2_quantile
     for dof in (1, 2, 3, 9, 15, 150, 4500):
         for q in (0.0005, 0.025, 0.5, 0.975, 0.999):
             assert chi2_quantile(q, dof) == chi2.ppf(q, dof)
+    dofs = np.array([1, 2, 3, 6])
+    np.testing.assert_array_equal(chi2_quantile(0.999, dofs), chi2.ppf(0.999, dofs))
+    code = ("import sys, numpy as np\n"
+            "from aligngym.scenarios.figures import mean_nees_band, median_nees_band\n"
+            "from aligngym.estimators.adaptation import AdaptationContext, SingleFadingFactor\n"
+            "mean_nees_band(3, 10); median_nees_band(3, 10)\n"
+            "p = SingleFadingFactor(outlier_probability=0.999); p.reset(1)\n"
+            "ctx = AdaptationContext(innovation=np.ones((1, 2)), valid=np.ones((1, 2), bool),"
+            " S=np.eye(2)[None], P_xz=np.zeros((1, 3, 2)), PhiPPhi=np.eye(3)[None],"
+            " Q=np.eye(3)[None], R=np.eye(2)[None], H=np.zeros((1, 2, 3)))\n"
+            "p._outliers(ctx, ctx.valid)\n"
+            "assert 'scipy.stats' not in sys.modules, 'scipy.stats imported'\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
     tail = (1.0 - 0.95) / 2.0
     for dof, episodes in ((3, 7), (9, 10), (15, 3), (9, 50)):
         k_low, k_high = (episodes + 1) // 2, episodes // 2 + 1

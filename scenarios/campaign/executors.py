@@ -9,6 +9,7 @@ import zipfile
 import zlib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
+from typing import Iterator
 from pathlib import Path
 
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
@@ -90,7 +91,7 @@ def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
 
 
 @contextmanager
-def stopped_on_error(pool: ProcessPoolExecutor):
+def stopped_on_error(pool: ProcessPoolExecutor) -> Iterator[ProcessPoolExecutor]:
     """Shut the pool down when the block ends; on an interruption or an error stop it at
     once (queued tasks cancelled, running workers terminated) and re-raise."""
     try:

@@ -7,8 +7,10 @@ so a batch is split only where each chunk keeps enough integration points per ep
 (``MIN_CHUNK_POINTS``), never into more chunks than there are processes, and the
 processes never outnumber the cores: asking for more workers cannot make a run slower.
 A campaign whose filters are little work (``PARALLEL_MIN_WORK``) runs them here, one
-after another, as does a machine without ``fork``. Each run is the one a single batch
-gives, to the bit: the episodes of a batch are independent.
+after another, as does a platform other than Linux (the workers are forked, to inherit
+the prepared episodes without copying them) and a process that has started Ray (a Ray
+driver must not fork). Each run is the one a single batch gives, to the bit: the
+episodes of a batch are independent.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import multiprocessing
 import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 
@@ -35,9 +38,9 @@ points (one evaluation of the model's map at one point): measured on paper 002's
 the UKF at a batch of 3 (63 points) takes 1.4 ms an epoch and sghkf-4 0.27 us per point
 more, so the fixed part is about 5000 points' worth."""
 MIN_CHUNK_POINTS = 4 * EPOCH_OVERHEAD_POINTS
-"""Points per epoch a chunk of a batch keeps at least (its fixed cost at most a fifth of
-its work): sghkf-4 (1981 points) splits in two from 21 members on, a UKF of 21 points
-from 1905."""
+"""Points per epoch a chunk of a batch keeps, to a member (its fixed cost about a fifth of
+its work at most): sghkf-4 (1981 points) splits in two from 21 members on, a UKF of 21
+points from 1905."""
 PARALLEL_MIN_WORK = 4e6
 """Point-epochs (with each task's fixed cost, ``task_work``) below which the filters run
 in this process: starting workers and returning their runs costs about what 1 s of
@@ -94,13 +97,15 @@ def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
     from tqdm import tqdm
 
     global _SHARED
+    if not episodes or not filters:
+        return []
     members, starts = member_batch(start_errors, episodes)
     processes = max(1, min(workers, usable_cores()))
     tasks = plan_filter_tasks(filters, experiment, len(members), epochs, processes)
     parallel = (processes > 1 and len(tasks) > 1 and sys.platform.startswith("linux")
-                and sum(t.work for t in tasks) >= PARALLEL_MIN_WORK)
+                and sum(t.work for t in tasks) >= PARALLEL_MIN_WORK and not _ray_started())
     results: dict[int, FineResult] = {}
-    bar = tqdm(total=len(tasks), disable=not progress, desc="filters")
+    bar = tqdm(total=len(tasks), disable=not progress, desc="filter runs (chunks)")
     _SHARED = (experiment, members, starts)
     try:
         if not parallel:
@@ -121,8 +126,14 @@ def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
     return runs
 
 
+def _ray_started() -> bool:
+    """Ray is initialised in this process (an ``--executor ray`` preparation)."""
+    ray = sys.modules.get("ray")
+    return bool(ray is not None and getattr(ray, "is_initialized", lambda: False)())
+
+
 def _run_in_processes(tasks: list[FilterTask], processes: int,
-                      results: dict[int, FineResult], bar) -> None:
+                      results: dict[int, FineResult], bar: Any) -> None:
     """Forked workers (one BLAS thread each, Ctrl-C left to this process), the largest
     tasks first; on an interruption or an error the pool is stopped at once."""
     pool = ProcessPoolExecutor(max_workers=processes,
@@ -138,7 +149,7 @@ def _run_in_processes(tasks: list[FilterTask], processes: int,
             bar.update()
 
 
-def _one_thread_worker(then) -> None:
+def _one_thread_worker(then: Callable[[], None]) -> None:
     """A worker's BLAS and OpenMP pools limited to one thread (the processes already
     take the cores), then ``then()``."""
     from threadpoolctl import threadpool_limits

@@ -1,6 +1,7 @@
-"""One filter over a batch of prepared episodes: the batched run (split over threads for
-the many-point rules), and its analysis (errors, NEES, divergence, convergence time,
-one tidy row per episode)."""
+"""One filter over a batch of prepared episodes (episodes x starts): the batched run, or
+the run of some of its members (``run_members``, the tasks of ``campaign.filtering``),
+and its analysis (errors, NEES, divergence, convergence time, one tidy row per
+episode)."""
 from __future__ import annotations
 
 from typing import Any
@@ -58,7 +59,8 @@ def run_filter_starts(name: str, start_errors: dict[str, np.ndarray],
     alone, at the per-epoch cost of one batch (a few starts of a few episodes cost little
     more than one); seconds_per_epoch is shared in proportion. With threads > 1 the batch
     is split into that many chunks run in threads (NumPy releases the GIL in its array
-    loops), with the same result. model_options go to ``experiment.model``."""
+    loops), with the same result; a campaign runs its filters in processes instead
+    (``campaign.filtering``). model_options go to ``experiment.model``."""
     members, starts = member_batch(start_errors, episodes)
     chunks = [c for c in np.array_split(np.arange(len(members)), max(1, threads)) if c.size]
 
