@@ -659,9 +659,73 @@ def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
     return path
 
 
-def write_figures(result, out: Path) -> list[Path]:
+def write_figures(result, out: Path, processes: int | None = None) -> list[Path]:
     """The four campaign figures per starting error (module docstring) in out; the NEES
-    figure only for an experiment with a NEES. Returns the paths written."""
+    figure only for an experiment with a NEES, drawn alongside each other in up to
+    ``processes`` worker processes (``FigureDrawing``; None: the cores, 1: here).
+    Returns the paths written."""
+    return FigureDrawing.start(figure_jobs(result, out), processes).finish()
+
+
+class FigureDrawing:
+    """Figures being drawn: each job (a callable that draws one figure and returns its
+    path) in a forked worker process, as many as the cores, while this process goes on
+    (``start``); ``finish`` waits and returns the paths in the jobs' order. One job, one
+    core, a platform other than Linux or a process that has started Ray: the jobs run
+    in ``finish``, here. A figure's PNG is written atomically by the worker that draws
+    it."""
+
+    _jobs: list = []
+    """The jobs of the drawing in progress: forked workers inherit them, so that a task
+    is an index."""
+
+    def __init__(self, jobs: list, pool=None, futures=None) -> None:
+        self.jobs, self.pool, self.futures = jobs, pool, futures
+
+    @classmethod
+    def start(cls, jobs: list, processes: int | None = None) -> "FigureDrawing":
+        import multiprocessing
+        import sys
+        from concurrent.futures import ProcessPoolExecutor
+
+        from aligngym.scenarios.campaign.executors import ignore_interrupt, usable_cores
+        from aligngym.scenarios.campaign.filtering import _ray_started
+        processes = min(len(jobs), usable_cores(), processes or len(jobs))
+        if processes < 2 or not sys.platform.startswith("linux") or _ray_started():
+            return cls(jobs)
+        cls._jobs = jobs
+        pool = ProcessPoolExecutor(max_workers=processes, initializer=ignore_interrupt,
+                                   mp_context=multiprocessing.get_context("fork"))
+        return cls(jobs, pool, [pool.submit(_draw, i) for i in range(len(jobs))])
+
+    def cancel(self) -> None:
+        """Stop the workers at once (an error or Ctrl-C while the figures are drawn)."""
+        if self.pool is not None:
+            for process in list((getattr(self.pool, "_processes", None) or {}).values()):
+                process.terminate()
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            FigureDrawing._jobs = []
+
+    def finish(self) -> list[Path]:
+        """The paths written, in the jobs' order (a worker's error raised here)."""
+        if self.pool is None:
+            return [job() for job in self.jobs]
+        from aligngym.scenarios.campaign.executors import stopped_on_error
+        try:
+            with stopped_on_error(self.pool):
+                return [future.result() for future in self.futures]
+        finally:
+            FigureDrawing._jobs = []
+
+
+def _draw(index: int) -> Path:
+    return FigureDrawing._jobs[index]()
+
+
+def figure_jobs(result, out: Path) -> list:
+    """The campaign figures to draw (``write_figures``), each a callable drawing one and
+    returning its path."""
+    from functools import partial
     exp = result.experiment
     bands, cdfs = error_bands(result), heading_convergence_cdfs(result)
     curves = nees_curves(result)
@@ -671,25 +735,25 @@ def write_figures(result, out: Path) -> list[Path]:
     in_window = exp.accuracy_window(t, result.episodes[0].fine_start if result.episodes
                                     else 0.0)
     window = float(t[-1] - t[in_window][0]) if in_window.any() else exp.rms_window
-    paths = []
+    jobs = []
     for start in exp.starts:
         pick = lambda items: [x for x in items if x.start == start]  # noqa: E731
         if not pick(bands):
             continue
-        paths.append(plot_error_bands(
-            pick(bands), window,
+        jobs.append(partial(
+            plot_error_bands, pick(bands), window,
             f"Attitude error from the {start} start over {len(result.seeds)} episodes",
             out / f"fine_error_{start}.png", twins))
-        paths.append(plot_final_errors(result, start, out / f"final_error_{start}.png",
-                                       twins))
-        paths.append(plot_heading_convergence(pick(cdfs), exp.heading_threshold_arcmin,
-                                              start, out / f"heading_convergence_{start}.png",
-                                              twins))
+        jobs.append(partial(plot_final_errors, result, start,
+                            out / f"final_error_{start}.png", twins))
+        jobs.append(partial(plot_heading_convergence, pick(cdfs),
+                            exp.heading_threshold_arcmin, start,
+                            out / f"heading_convergence_{start}.png", twins))
         nees = pick(curves)
         if dof and any(np.isfinite(c.mean).any() for c in nees):
-            paths.append(plot_nees(nees, dof, start, out / f"nees_{start}.png",
-                                   twins=twins))
-    return paths
+            jobs.append(partial(plot_nees, nees, dof, start, out / f"nees_{start}.png",
+                                twins=twins))
+    return jobs
 
 
 FIGURE_CAPTIONS = {

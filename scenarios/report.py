@@ -14,7 +14,7 @@ import numpy as np
 from aligngym.models.units import arcmin
 from aligngym.scenarios.atomic import atomic_path, write_json, write_text
 from aligngym.scenarios.campaign import AXES, CampaignResult, episode_metrics
-from aligngym.scenarios.figures import nees_band_summary, write_figures
+from aligngym.scenarios.figures import FigureDrawing, figure_jobs, nees_band_summary
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
@@ -97,6 +97,25 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
         return written
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    # the figures are drawn in worker processes while the tables and series are written
+    drawing = FigureDrawing.start(figure_jobs(result, out)) if figures else None
+    try:
+        written += _write_tables(result, out, summary, command)
+    except BaseException:
+        if drawing is not None:
+            drawing.cancel()
+        raise
+    if drawing is not None:
+        written += drawing.finish()
+        written += result.experiment.plots(result, out)
+    return written
+
+
+def _write_tables(result: CampaignResult, out: Path, summary: dict,
+                  command: list[str] | None) -> list[Path]:
+    """results.csv, coarse.csv, timeseries.npz, tables.txt, summary.json and
+    settings.json in out (``write_outputs``)."""
+    written = []
     with atomic_path(out / "results.csv") as tmp, open(tmp, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=TIDY_COLUMNS)
         writer.writeheader()
@@ -127,7 +146,4 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     written += [write_text(out / "tables.txt", format_tables(result) + "\n"),
                 write_json(out / "summary.json", summary),
                 write_json(out / "settings.json", campaign_settings(result, command))]
-    if figures:
-        written += write_figures(result, out)
-        written += result.experiment.plots(result, out)
     return written

@@ -160,7 +160,7 @@ def drawn(monkeypatch):
         figs = {}
         monkeypatch.setattr(figures, "save_figure",
                             lambda fig, path, **_: figs.setdefault(Path(path).stem, fig))
-        write_figures(result, Path("unused"))
+        write_figures(result, Path("unused"), processes=1)   # drawn here, to be seen
         return figs
     return draw
 
