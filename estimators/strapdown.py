@@ -98,14 +98,20 @@ def compensate(dtheta: np.ndarray, dv: np.ndarray, dtheta_first_prev: np.ndarray
     """Coning and sculling/rotation compensation of a sequence of increments (B, M, 3).
 
     The interval before the first uses the given increments, or the first ones (constant
-    rate and force). Returns (phi, dv_b), each (B, M, 3).
+    rate and force). Returns (phi, dv_b), each (B, M, 3): ``coning_rotation_vector`` and
+    ``body_velocity_increment`` of each interval and the one before it, compiled
+    (``strapdown_kernel.compensate_increments``, the same numbers).
     """
-    dtheta_prev = np.concatenate([dtheta[:, :1] if dtheta_first_prev is None
-                                  else dtheta_first_prev[:, None], dtheta[:, :-1]], axis=1)
-    dv_prev = np.concatenate([dv[:, :1] if dv_first_prev is None else dv_first_prev[:, None],
-                              dv[:, :-1]], axis=1)
-    return (coning_rotation_vector(dtheta, dtheta_prev),
-            body_velocity_increment(dtheta, dv, dtheta_prev, dv_prev))
+    from aligngym.estimators.strapdown_kernel import compensate_increments  # Numba
+    dtheta = np.ascontiguousarray(dtheta, dtype=float)
+    dv = np.ascontiguousarray(dv, dtype=float)
+    first = np.ascontiguousarray(dtheta[:, 0] if dtheta_first_prev is None
+                                 else dtheta_first_prev, dtype=float)
+    first_dv = np.ascontiguousarray(dv[:, 0] if dv_first_prev is None else dv_first_prev,
+                                    dtype=float)
+    phi, dv_b = np.empty_like(dtheta), np.empty_like(dv)
+    compensate_increments(dtheta, dv, first, first_dv, phi, dv_b)   # the formulas below
+    return phi, dv_b
 
 
 def _run(state: StrapdownState, a_n: np.ndarray, phi: np.ndarray, dv_b: np.ndarray,

@@ -83,3 +83,53 @@ def _rotvec_quat(x, y, z):
     half = 0.5 * angle
     scale = 0.5 - angle * angle / 48.0 if angle < 1e-4 else np.sin(half) / angle
     return np.cos(half), scale * x, scale * y, scale * z
+
+
+@njit(cache=True)
+def _cross(a0, a1, a2, b0, b1, b2):
+    """a x b of two 3-vectors given by components (``models.attitude.cross``)."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def compensate_increments(dtheta, dv, dtheta_prev0, dv_prev0, phi, dv_b):
+    """``strapdown.compensate`` compiled, the arithmetic of ``coning_rotation_vector`` and
+    ``body_velocity_increment`` in the same order (the same numbers): increments
+    dtheta, dv (B, M, 3); the interval before the first, dtheta_prev0, dv_prev0 (B, 3);
+    fills phi and dv_b (B, M, 3)."""
+    for b in range(dtheta.shape[0]):
+        p0, p1, p2 = dtheta_prev0[b, 0], dtheta_prev0[b, 1], dtheta_prev0[b, 2]
+        q0, q1, q2 = dv_prev0[b, 0], dv_prev0[b, 1], dv_prev0[b, 2]
+        for k in range(dtheta.shape[1]):
+            t0, t1, t2 = dtheta[b, k, 0], dtheta[b, k, 1], dtheta[b, k, 2]
+            v0, v1, v2 = dv[b, k, 0], dv[b, k, 1], dv[b, k, 2]
+            x0, x1, x2 = _cross(p0, p1, p2, t0, t1, t2)
+            phi[b, k, 0], phi[b, k, 1], phi[b, k, 2] = t0 + x0 / 12.0, t1 + x1 / 12.0, \
+                t2 + x2 / 12.0
+            a0, a1, a2 = 0.5 * (t0 + p0), 0.5 * (t1 + p1), 0.5 * (t2 + p2)
+            e0, e1, e2 = 0.5 * (t0 - p0), 0.5 * (t1 - p1), 0.5 * (t2 - p2)
+            c0, c1, c2 = 0.5 * (v0 + q0), 0.5 * (v1 + q1), 0.5 * (v2 + q2)
+            d0, d1, d2 = v0 - q0, v1 - q1, v2 - q2
+            ac = _cross(a0, a1, a2, c0, c1, c2)
+            ad = _cross(a0, a1, a2, d0, d1, d2)
+            ec = _cross(e0, e1, e2, c0, c1, c2)
+            ed = _cross(e0, e1, e2, d0, d1, d2)
+            a_ac = _cross(a0, a1, a2, ac[0], ac[1], ac[2])
+            a_ad = _cross(a0, a1, a2, ad[0], ad[1], ad[2])
+            a_ec = _cross(a0, a1, a2, ec[0], ec[1], ec[2])
+            e_ac = _cross(e0, e1, e2, ac[0], ac[1], ac[2])
+            a_ed = _cross(a0, a1, a2, ed[0], ed[1], ed[2])
+            e_ad = _cross(e0, e1, e2, ad[0], ad[1], ad[2])
+            e_ec = _cross(e0, e1, e2, ec[0], ec[1], ec[2])
+            e_ed = _cross(e0, e1, e2, ed[0], ed[1], ed[2])
+            ae = _cross(a0, a1, a2, e0, e1, e2)
+            w = (c0 / 24.0 + d0 / 30.0, c1 / 24.0 + d1 / 30.0, c2 / 24.0 + d2 / 30.0)
+            coning = _cross(ae[0], ae[1], ae[2], w[0], w[1], w[2])
+            vel = (v0, v1, v2)
+            for i in range(3):
+                first = ac[i] / 2.0 + ad[i] / 3.0 + ec[i] / 3.0 + ed[i] / 4.0
+                second = 0.5 * (a_ac[i] / 3.0 + a_ad[i] / 4.0 + (a_ec[i] + e_ac[i]) / 4.0
+                                 + (a_ed[i] + e_ad[i]) / 5.0 + e_ec[i] / 5.0
+                                 + e_ed[i] / 6.0)
+                dv_b[b, k, i] = vel[i] + first + second + coning[i]
+            p0, p1, p2, q0, q1, q2 = t0, t1, t2, v0, v1, v2

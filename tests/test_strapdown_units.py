@@ -347,3 +347,27 @@ def test_interval_must_be_positive(dt):
         Strapdown(state, dt)
     with pytest.raises(ValueError, match=r"^dt must be > 0 s, got "):
         run_strapdown(state, dtheta, dv, dt)
+
+
+def test_the_compiled_compensation_is_the_formulas_to_the_bit():
+    """``compensate`` runs a compiled loop (``strapdown_kernel.compensate_increments``):
+    on random increments, with and without the increments before the first, the same
+    numbers as ``coning_rotation_vector`` and ``body_velocity_increment`` of each
+    interval and the one before it (checked above against closed forms)."""
+    from aligngym.estimators.strapdown import (body_velocity_increment, compensate,
+                                               coning_rotation_vector)
+    rng = np.random.default_rng(4)
+    for trial in range(40):
+        B, M = rng.integers(1, 4), rng.integers(1, 40)
+        dtheta = rng.normal(size=(B, M, 3)) * rng.choice([1e-6, 1e-3, 0.1])
+        dv = rng.normal(size=(B, M, 3)) * rng.choice([1e-4, 0.1, 1.0])
+        given = trial % 2 == 0
+        first = rng.normal(size=(B, 3)) * 1e-3 if given else None
+        first_dv = rng.normal(size=(B, 3)) * 1e-2 if given else None
+        prev = np.concatenate([dtheta[:, :1] if first is None else first[:, None],
+                               dtheta[:, :-1]], 1)
+        prev_dv = np.concatenate([dv[:, :1] if first_dv is None else first_dv[:, None],
+                                  dv[:, :-1]], 1)
+        phi, dv_b = compensate(dtheta, dv, first, first_dv)
+        np.testing.assert_array_equal(phi, coning_rotation_vector(dtheta, prev))
+        np.testing.assert_array_equal(dv_b, body_velocity_increment(dtheta, dv, prev, prev_dv))
