@@ -698,16 +698,11 @@ class EulerLargeMisalignmentModel(FilterModel):
 def reset_jacobian(alpha_hat: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """d alpha' / d alpha (B, 3, 3) at alpha = alpha_hat for the feedback reset
     C_p^n(alpha') = C_p^n(alpha) C_p^n(alpha_hat)^T (alpha' = 0 at alpha_hat), by
-    central differences."""
+    central differences (the six perturbed attitudes in one batch)."""
     R_t = np.swapaxes(C_p_n(alpha_hat), -1, -2)
-    J = np.empty(alpha_hat.shape[:-1] + (3, 3))
-    for j in range(3):
-        d = np.zeros(3)
-        d[j] = step
-        plus = dcm_to_euler(C_p_n(alpha_hat + d) @ R_t)
-        minus = dcm_to_euler(C_p_n(alpha_hat - d) @ R_t)
-        J[..., :, j] = (plus - minus) / (2.0 * step)
-    return J
+    d = np.concatenate([np.eye(3) * step, -np.eye(3) * step])     # (6, 3): +e_j, -e_j
+    euler = dcm_to_euler(C_p_n(alpha_hat[..., None, :] + d) @ R_t[..., None, :, :])
+    return np.swapaxes((euler[..., :3, :] - euler[..., 3:, :]) / (2.0 * step), -1, -2)
 
 
 class SmallAngleModel(EulerLargeMisalignmentModel):
