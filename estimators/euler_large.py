@@ -290,33 +290,37 @@ def C_omega(alpha: np.ndarray) -> np.ndarray:
     C_p^n_dot = C_p^n [omega_np^p x]. Singular at alpha_E = +-90 deg."""
     sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
     sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
-    z, o = np.zeros_like(sE), np.ones_like(sE)
-    return np.stack([np.stack([cN, z, -sN * cE], -1),
-                     np.stack([z, o, sE], -1),
-                     np.stack([sN, z, cN * cE], -1)], -2)
+    M = np.zeros(alpha.shape[:-1] + (3, 3))
+    M[..., 0, 0], M[..., 0, 2] = cN, -sN * cE
+    M[..., 1, 1], M[..., 1, 2] = 1.0, sE
+    M[..., 2, 0], M[..., 2, 2] = sN, cN * cE
+    return M
 
 
 def C_omega_inv(alpha: np.ndarray) -> np.ndarray:
     """C_omega^-1 (..., 3, 3) in closed form (det C_omega = cos alpha_E)."""
     sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
     sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
-    tE, z, o = sE / cE, np.zeros_like(sE), np.ones_like(sE)
-    return np.stack([np.stack([cN, z, sN], -1),
-                     np.stack([sN * tE, o, -cN * tE], -1),
-                     np.stack([-sN / cE, z, cN / cE], -1)], -2)
+    tE = sE / cE
+    M = np.zeros(alpha.shape[:-1] + (3, 3))
+    M[..., 0, 0], M[..., 0, 2] = cN, sN
+    M[..., 1, 0], M[..., 1, 1], M[..., 1, 2] = sN * tE, 1.0, -cN * tE
+    M[..., 2, 0], M[..., 2, 2] = -sN / cE, cN / cE
+    return M
 
 
 def _C_omega_inv_partials(alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """d(C_omega^-1)/d alpha_E and d/d alpha_N, each (..., 3, 3) (no alpha_U dependence)."""
     sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
     sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
-    tE, secE, z = sE / cE, 1.0 / cE, np.zeros_like(sE)
-    dE = np.stack([np.stack([z, z, z], -1),
-                   np.stack([sN * secE ** 2, z, -cN * secE ** 2], -1),
-                   np.stack([-sN * tE * secE, z, cN * tE * secE], -1)], -2)
-    dN = np.stack([np.stack([-sN, z, cN], -1),
-                   np.stack([cN * tE, z, sN * tE], -1),
-                   np.stack([-cN * secE, z, -sN * secE], -1)], -2)
+    tE, secE = sE / cE, 1.0 / cE
+    dE = np.zeros(alpha.shape[:-1] + (3, 3))
+    dE[..., 1, 0], dE[..., 1, 2] = sN * secE ** 2, -cN * secE ** 2
+    dE[..., 2, 0], dE[..., 2, 2] = -sN * tE * secE, cN * tE * secE
+    dN = np.zeros(alpha.shape[:-1] + (3, 3))
+    dN[..., 0, 0], dN[..., 0, 2] = -sN, cN
+    dN[..., 1, 0], dN[..., 1, 2] = cN * tE, sN * tE
+    dN[..., 2, 0], dN[..., 2, 2] = -cN * secE, -sN * secE
     return dE, dN
 
 
@@ -327,9 +331,10 @@ def _C_p_n_partials(alpha: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, ...]:
     e2 = np.array([[0.0, 0, 1], [0, 0, 0], [-1, 0, 0]])
     e3 = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 0]])
     sz, cz = np.sin(alpha[..., 2]), np.cos(alpha[..., 2])
-    z, o = np.zeros_like(sz), np.ones_like(sz)
-    Rz = np.stack([np.stack([cz, -sz, z], -1), np.stack([sz, cz, z], -1),
-                   np.stack([z, z, o], -1)], -2)
+    Rz = np.zeros(alpha.shape[:-1] + (3, 3))
+    Rz[..., 0, 0], Rz[..., 0, 1] = cz, -sz
+    Rz[..., 1, 0], Rz[..., 1, 1] = sz, cz
+    Rz[..., 2, 2] = 1.0
     # Rx Ry = Rz^T C, so Rz [e1 x] Rx Ry = Rz [e1 x] Rz^T C = [(Rz e1) x] C.
     dE = Rz @ e1 @ np.swapaxes(Rz, -1, -2) @ C
     return dE, C @ e2, e3 @ C
@@ -434,10 +439,11 @@ def level_rotation(alpha: np.ndarray) -> np.ndarray:
     ALGORITHMS (3.5)."""
     sE, cE = np.sin(alpha[..., 0]), np.cos(alpha[..., 0])
     sN, cN = np.sin(alpha[..., 1]), np.cos(alpha[..., 1])
-    z = np.zeros_like(sE)
-    return np.stack([np.stack([cN, z, sN], -1),
-                     np.stack([sE * sN, cE, -sE * cN], -1),
-                     np.stack([-cE * sN, sE, cE * cN], -1)], -2)
+    L = np.zeros(alpha.shape[:-1] + (3, 3))
+    L[..., 0, 0], L[..., 0, 2] = cN, sN
+    L[..., 1, 0], L[..., 1, 1], L[..., 1, 2] = sE * sN, cE, -sE * cN
+    L[..., 2, 0], L[..., 2, 1], L[..., 2, 2] = -cE * sN, sE, cE * cN
+    return L
 
 
 def _mv(A: np.ndarray, v: np.ndarray) -> np.ndarray:
