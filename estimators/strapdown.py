@@ -95,7 +95,8 @@ def coning_rotation_vector(dtheta: np.ndarray, dtheta_prev: np.ndarray) -> np.nd
 
 def compensate(dtheta: np.ndarray, dv: np.ndarray, dtheta_first_prev: np.ndarray | None = None,
                dv_first_prev: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Coning and sculling/rotation compensation of a sequence of increments (B, M, 3).
+    """Coning and sculling/rotation compensation of a sequence of increments dtheta (rad)
+    and dv (m/s), each (B, M, 3).
 
     The interval before the first uses the given increments, or the first ones (constant
     rate and force). Returns (phi, dv_b), each (B, M, 3): ``coning_rotation_vector`` and
@@ -105,11 +106,19 @@ def compensate(dtheta: np.ndarray, dv: np.ndarray, dtheta_first_prev: np.ndarray
     from aligngym.estimators.strapdown_kernel import compensate_increments  # Numba
     dtheta = np.ascontiguousarray(dtheta, dtype=float)
     dv = np.ascontiguousarray(dv, dtype=float)
+    if dtheta.ndim != 3 or dtheta.shape[-1] != 3 or dv.shape != dtheta.shape:
+        raise ValueError(f"dtheta and dv must both be (B, M, 3), got {dtheta.shape} and "
+                         f"{dv.shape}")
+    phi, dv_b = np.empty_like(dtheta), np.empty_like(dv)
+    if dtheta.shape[1] == 0:
+        return phi, dv_b
     first = np.ascontiguousarray(dtheta[:, 0] if dtheta_first_prev is None
                                  else dtheta_first_prev, dtype=float)
     first_dv = np.ascontiguousarray(dv[:, 0] if dv_first_prev is None else dv_first_prev,
                                     dtype=float)
-    phi, dv_b = np.empty_like(dtheta), np.empty_like(dv)
+    if first.shape != dtheta[:, 0].shape or first_dv.shape != first.shape:
+        raise ValueError(f"the increments before the first must be (B, 3) = "
+                         f"{dtheta[:, 0].shape}, got {first.shape} and {first_dv.shape}")
     compensate_increments(dtheta, dv, first, first_dv, phi, dv_b)   # the formulas below
     return phi, dv_b
 

@@ -391,7 +391,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             elapsed += time.perf_counter() - start
             print(format_tables(result))
             written = write_outputs(result, out, args.json if level is None else None,
-                                    command=args.command_line, figures=not args.no_figures)
+                                    command=args.command_line, figures=not args.no_figures,
+                                    processes=args.workers)
         for path in written:
             print(f"wrote {path}")
         summaries.append(result.summary())

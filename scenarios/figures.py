@@ -26,6 +26,7 @@ puts the excursions in the campaign's summary.json ("nees_band").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Callable
 from pathlib import Path
 
 import numpy as np
@@ -669,34 +670,48 @@ def write_figures(result, out: Path, processes: int | None = None) -> list[Path]
 
 class FigureDrawing:
     """Figures being drawn: each job (a callable that draws one figure and returns its
-    path) in a forked worker process, as many as the cores, while this process goes on
-    (``start``); ``finish`` waits and returns the paths in the jobs' order. One job, one
-    core, a platform other than Linux or a process that has started Ray: the jobs run
-    in ``finish``, here. A figure's PNG is written atomically by the worker that draws
+    path) in a forked worker process, up to ``processes`` of them (None: the cores),
+    while this process goes on (``start``); ``finish`` waits and returns the paths in
+    the jobs' order, ``cancel`` stops the workers. One job, one process, a platform other
+    than Linux, a process that has started Ray, or workers that cannot be started: the
+    jobs run in ``finish``, here. A figure's PNG is written atomically by whoever draws
     it."""
 
-    _jobs: list = []
-    """The jobs of the drawing in progress: forked workers inherit them, so that a task
-    is an index."""
-
-    def __init__(self, jobs: list, pool=None, futures=None) -> None:
+    def __init__(self, jobs: list[Callable[[], Path]], pool: Any = None,
+                 futures: list | None = None) -> None:
         self.jobs, self.pool, self.futures = jobs, pool, futures
 
     @classmethod
-    def start(cls, jobs: list, processes: int | None = None) -> "FigureDrawing":
+    def start(cls, jobs: list[Callable[[], Path]], processes: int | None = None
+              ) -> "FigureDrawing":
         import multiprocessing
+        import os
         import sys
         from concurrent.futures import ProcessPoolExecutor
 
-        from aligngym.scenarios.campaign.executors import ignore_interrupt, usable_cores
+        from aligngym.scenarios.campaign.executors import usable_cores
         from aligngym.scenarios.campaign.filtering import _ray_started
-        processes = min(len(jobs), usable_cores(), processes or len(jobs))
-        if processes < 2 or not sys.platform.startswith("linux") or _ray_started():
+        wanted = usable_cores() if processes is None else processes
+        if wanted < 1:
+            raise ValueError(f"figure processes = {processes} must be >= 1")
+        n = min(len(jobs), usable_cores(), wanted)
+        if n < 2 or not sys.platform.startswith("linux") or _ray_started():
             return cls(jobs)
-        cls._jobs = jobs
-        pool = ProcessPoolExecutor(max_workers=processes, initializer=ignore_interrupt,
-                                   mp_context=multiprocessing.get_context("fork"))
-        return cls(jobs, pool, [pool.submit(_draw, i) for i in range(len(jobs))])
+        try:
+            pool = ProcessPoolExecutor(max_workers=n, initializer=_figure_worker,
+                                       initargs=(os.getpid(), jobs),
+                                       mp_context=multiprocessing.get_context("fork"))
+        except OSError:                 # no process to be had: draw them here
+            return cls(jobs)
+        drawing = cls(jobs, pool, [])
+        try:
+            drawing.futures = [pool.submit(_draw, i) for i in range(len(jobs))]
+        except BaseException:
+            drawing.cancel()
+            if isinstance(sys.exc_info()[1], OSError):
+                return cls(jobs)
+            raise
+        return drawing
 
     def cancel(self) -> None:
         """Stop the workers at once (an error or Ctrl-C while the figures are drawn)."""
@@ -704,25 +719,36 @@ class FigureDrawing:
             for process in list((getattr(self.pool, "_processes", None) or {}).values()):
                 process.terminate()
             self.pool.shutdown(wait=False, cancel_futures=True)
-            FigureDrawing._jobs = []
+            self.pool = None
 
     def finish(self) -> list[Path]:
         """The paths written, in the jobs' order (a worker's error raised here)."""
         if self.pool is None:
             return [job() for job in self.jobs]
         from aligngym.scenarios.campaign.executors import stopped_on_error
-        try:
-            with stopped_on_error(self.pool):
-                return [future.result() for future in self.futures]
-        finally:
-            FigureDrawing._jobs = []
+        with stopped_on_error(self.pool):
+            return [future.result() for future in self.futures]
+
+
+_JOBS: list = []
+"""A figure worker's jobs (``FigureDrawing``), set when it starts."""
+
+
+def _figure_worker(parent: int, jobs: list) -> None:
+    """A figure worker's start (``executors.start_worker``) and its jobs (inherited from
+    the fork, not copied)."""
+    global _JOBS
+    from aligngym.scenarios.campaign.executors import start_worker
+    start_worker(parent)
+    _JOBS = jobs
 
 
 def _draw(index: int) -> Path:
-    return FigureDrawing._jobs[index]()
+    """Draw job ``index`` of this worker's ``FigureDrawing``."""
+    return _JOBS[index]()
 
 
-def figure_jobs(result, out: Path) -> list:
+def figure_jobs(result, out: Path) -> list[Callable[[], Path]]:
     """The campaign figures to draw (``write_figures``), each a callable drawing one and
     returning its path."""
     from functools import partial

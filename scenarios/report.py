@@ -79,12 +79,14 @@ def campaign_settings(result: CampaignResult, command: list[str] | None = None) 
 
 def write_outputs(result: CampaignResult, out_dir: str | Path | None,
                   json_path: str | Path | None, command: list[str] | None = None,
-                  figures: bool = True) -> list[Path]:
+                  figures: bool = True, processes: int | None = None) -> list[Path]:
     """Write to out_dir results.csv, coarse.csv (experiments with a coarse stage),
     timeseries.npz, tables.txt (``format_tables``), summary.json (the JSON summary),
     settings.json (``campaign_settings``; command: the command line, for the record), the
-    campaign figures (``scenarios.figures``) and the experiment's own (PNG; figures=False
-    leaves them out); and the JSON summary to json_path. Returns the paths written."""
+    campaign figures (``scenarios.figures``, drawn in up to ``processes`` worker processes
+    while the rest is written; None: the cores) and the experiment's own (PNG;
+    figures=False leaves them out); and the JSON summary to json_path. Returns the paths
+    written."""
     written = []
     # summary.json: the experiment's summary, and the mean NEES against its band (not in
     # result.summary(), whose paths are regress's metrics)
@@ -98,7 +100,13 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # the figures are drawn in worker processes while the tables and series are written
-    drawing = FigureDrawing.start(figure_jobs(result, out)) if figures else None
+    drawing = None
+    try:
+        if figures:
+            drawing = FigureDrawing.start(figure_jobs(result, out), processes)
+    except Exception:              # the figures failed before drawing: the tables first
+        _write_tables(result, out, summary, command)
+        raise
     try:
         written += _write_tables(result, out, summary, command)
     except BaseException:

@@ -436,3 +436,39 @@ def test_report_renders_in_headless_chromium(campaigns):
     assert len(images) == len(list(out.glob("*.png")))
     broken = [alt for complete, width, alt in images if not (complete and width > 0)]
     assert broken == []
+
+
+def _worker_facts(name):
+    """A figure job for the test below: this process's pid and the campaign locks it
+    holds, as a 'path'."""
+    import os
+    from aligngym.scenarios.campaign.manifest import _HELD
+    return Path(f"{name}-{os.getpid()}-{len(_HELD)}")
+
+
+def _failing_job():
+    raise RuntimeError("a figure failed")
+
+
+def test_figures_are_drawn_in_workers_that_hold_no_lock(tmp_path, monkeypatch):
+    """With two cores the figure jobs run in forked workers (their own pids), which hold
+    none of the campaign locks the parent holds; the paths come back in the jobs' order;
+    a job's error reaches the caller; no jobs, nothing; processes = 0 is refused."""
+    import os
+    from functools import partial
+
+    from aligngym.scenarios import figures
+    from aligngym.scenarios.campaign import executors
+    from aligngym.scenarios.campaign.manifest import campaign_lock
+    monkeypatch.setattr(executors, "usable_cores", lambda: 2)
+    with campaign_lock(tmp_path):
+        drawing = figures.FigureDrawing.start([partial(_worker_facts, n) for n in "abc"])
+        paths = drawing.finish()
+    names = [p.name.split("-") for p in paths]
+    assert [n[0] for n in names] == ["a", "b", "c"]
+    assert all(int(n[1]) != os.getpid() and n[2] == "0" for n in names)
+    with pytest.raises(RuntimeError, match="a figure failed"):
+        figures.FigureDrawing.start([partial(_worker_facts, "x"), _failing_job]).finish()
+    assert figures.FigureDrawing.start([]).finish() == []
+    with pytest.raises(ValueError, match="figure processes = 0 must be >= 1"):
+        figures.FigureDrawing.start([_failing_job], processes=0)

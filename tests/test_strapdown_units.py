@@ -371,3 +371,17 @@ def test_the_compiled_compensation_is_the_formulas_to_the_bit():
         phi, dv_b = compensate(dtheta, dv, first, first_dv)
         np.testing.assert_array_equal(phi, coning_rotation_vector(dtheta, prev))
         np.testing.assert_array_equal(dv_b, body_velocity_increment(dtheta, dv, prev, prev_dv))
+
+
+def test_the_compensation_refuses_mismatched_increments_and_takes_none():
+    """Increments of different shapes, or a first-previous increment of another batch,
+    are refused in one line (the compiled loop reads no bounds); no increments give none."""
+    from aligngym.estimators.strapdown import compensate
+    with pytest.raises(ValueError, match=r"dtheta and dv must both be \(B, M, 3\), got "
+                                         r"\(4, 50, 3\) and \(4, 10, 3\)"):
+        compensate(np.zeros((4, 50, 3)), np.zeros((4, 10, 3)))
+    with pytest.raises(ValueError, match=r"before the first must be \(B, 3\) = \(2, 3\), "
+                                         r"got \(1, 3\)"):
+        compensate(np.zeros((2, 5, 3)), np.zeros((2, 5, 3)), np.zeros((1, 3)), np.zeros((1, 3)))
+    phi, dv_b = compensate(np.zeros((2, 0, 3)), np.zeros((2, 0, 3)))
+    assert phi.shape == dv_b.shape == (2, 0, 3)

@@ -83,7 +83,7 @@ def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
     only share them); on an interruption or an error the pool is stopped at once, the
     finished episodes being saved already."""
     pool = ProcessPoolExecutor(max_workers=max(1, min(workers, usable_cores(), len(seeds))),
-                               initializer=ignore_interrupt)
+                               initializer=start_worker, initargs=(os.getpid(),))
     with stopped_on_error(pool):
         futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
         for fut in as_completed(futures):
@@ -125,6 +125,27 @@ def ignore_interrupt() -> None:
     """Worker processes leave Ctrl-C to the parent (which stops them): no traceback from
     every worker."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def start_worker(parent: int) -> None:
+    """What a local worker process does first: Ctrl-C left to the parent
+    (``ignore_interrupt``); the campaign locks it inherited closed (the parent's
+    descriptor holds the lock); and, on Linux, a SIGTERM when the parent dies, so that a
+    killed campaign (SIGKILL, out of memory) leaves no worker behind holding its
+    directory. parent: the parent's pid (a worker whose parent is already gone exits)."""
+    ignore_interrupt()
+    from aligngym.scenarios.campaign.manifest import _HELD
+    for fd in _HELD.values():
+        os.close(fd)
+    _HELD.clear()
+    if sys.platform.startswith("linux"):
+        import ctypes
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)
 
 
 def _prepare_task(experiment: Experiment, seed: int) -> PreparedEpisode:

@@ -15,18 +15,18 @@ episodes of a batch are independent.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.catalogue import filter_entry
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
-from aligngym.scenarios.campaign.executors import (ignore_interrupt, stopped_on_error,
-                                                   usable_cores)
+from aligngym.scenarios.campaign.executors import start_worker, stopped_on_error, usable_cores
 from aligngym.scenarios.campaign.experiment import Experiment, FilterRun
 from aligngym.scenarios.campaign.runs import (analyse_starts, concatenate_results,
                                               member_batch, run_members)
@@ -138,8 +138,8 @@ def _run_in_processes(tasks: list[FilterTask], processes: int,
     tasks first; on an interruption or an error the pool is stopped at once."""
     pool = ProcessPoolExecutor(max_workers=processes,
                                mp_context=multiprocessing.get_context("fork"),
-                               initializer=_one_thread_worker,
-                               initargs=(ignore_interrupt,))
+                               initializer=_filter_worker,
+                               initargs=(os.getpid(), _SHARED))
     with stopped_on_error(pool):
         order = sorted(range(len(tasks)), key=lambda i: -tasks[i].work)
         futures = {pool.submit(_run_task, tasks[i].name, tasks[i].index): i for i in order}
@@ -149,9 +149,12 @@ def _run_in_processes(tasks: list[FilterTask], processes: int,
             bar.update()
 
 
-def _one_thread_worker(then: Callable[[], None]) -> None:
-    """A worker's BLAS and OpenMP pools limited to one thread (the processes already
-    take the cores), then ``then()``."""
+def _filter_worker(parent: int, shared: tuple) -> None:
+    """A filter worker's start (``executors.start_worker``): its BLAS and OpenMP pools
+    limited to one thread (the processes already take the cores), and the batch it
+    filters (inherited from the fork, not copied)."""
+    global _SHARED
     from threadpoolctl import threadpool_limits
+    start_worker(parent)
     threadpool_limits(1)
-    then()
+    _SHARED = shared
