@@ -13,7 +13,6 @@ Run: python benchmarks/bench_scaling.py [--papers paper000,...] [--episodes 32]
 from __future__ import annotations
 
 import argparse
-import os
 import platform
 import shutil
 import statistics
@@ -21,6 +20,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from aligngym.scenarios.campaign.executors import usable_cores
 
 PAPERS = ("paper000", "paper001", "paper002", "paper003", "paper004")
 
@@ -55,10 +56,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=32)
     parser.add_argument("--repeat", type=int, default=1)
     args = parser.parse_args()
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:
-        cores = os.cpu_count() or 1
+    cores = usable_cores()
     counts = worker_counts(cores)
     print(f"{platform.processor() or platform.machine()}, {cores} cores, "
           f"{args.episodes} episodes, median of {args.repeat}")

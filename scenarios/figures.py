@@ -686,16 +686,14 @@ class FigureDrawing:
               ) -> "FigureDrawing":
         import multiprocessing
         import os
-        import sys
         from concurrent.futures import ProcessPoolExecutor
 
-        from aligngym.scenarios.campaign.executors import usable_cores
-        from aligngym.scenarios.campaign.filtering import _ray_started
+        from aligngym.scenarios.campaign.executors import can_fork_workers, usable_cores
         wanted = usable_cores() if processes is None else processes
         if wanted < 1:
             raise ValueError(f"figure processes = {processes} must be >= 1")
         n = min(len(jobs), usable_cores(), wanted)
-        if n < 2 or not sys.platform.startswith("linux") or _ray_started():
+        if n < 2 or not can_fork_workers():
             return cls(jobs)
         try:
             pool = ProcessPoolExecutor(max_workers=n, initializer=_figure_worker,
@@ -706,19 +704,19 @@ class FigureDrawing:
         drawing = cls(jobs, pool, [])
         try:
             drawing.futures = [pool.submit(_draw, i) for i in range(len(jobs))]
+        except OSError:                 # a worker could not be started: draw them here
+            drawing.cancel()
+            return cls(jobs)
         except BaseException:
             drawing.cancel()
-            if isinstance(sys.exc_info()[1], OSError):
-                return cls(jobs)
             raise
         return drawing
 
     def cancel(self) -> None:
         """Stop the workers at once (an error or Ctrl-C while the figures are drawn)."""
+        from aligngym.scenarios.campaign.executors import stop_pool
         if self.pool is not None:
-            for process in list((getattr(self.pool, "_processes", None) or {}).values()):
-                process.terminate()
-            self.pool.shutdown(wait=False, cancel_futures=True)
+            stop_pool(self.pool)
             self.pool = None
 
     def finish(self) -> list[Path]:

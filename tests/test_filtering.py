@@ -31,8 +31,8 @@ def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, mo
     pids = []
     real = filtering._run_in_processes
 
-    def spy(tasks, processes, results, bar):
-        real(tasks, processes, results, bar)
+    def spy(tasks, processes, results, *rest):
+        real(tasks, processes, results, *rest)
         pids.extend(r.series.get("pid", [0])[0] for r in results.values())
     monkeypatch.setattr(filtering, "_run_in_processes", spy)
     run_members = filtering.run_members

@@ -97,12 +97,26 @@ def stopped_on_error(pool: ProcessPoolExecutor) -> Iterator[ProcessPoolExecutor]
     try:
         yield pool
     except BaseException:
-        running = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for process in running:
-            process.terminate()
+        stop_pool(pool)
         raise
     pool.shutdown()
+
+
+def stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool at once: its queued tasks cancelled, its running workers terminated."""
+    running = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in running:
+        process.terminate()
+
+
+def can_fork_workers() -> bool:
+    """Local workers may be forked here: Linux (where they inherit the parent's data
+    without copying it), and no Ray started in this process (a Ray driver must not
+    fork)."""
+    ray = sys.modules.get("ray")
+    return sys.platform.startswith("linux") and not (
+        ray is not None and getattr(ray, "is_initialized", lambda: False)())
 
 
 def load_checked(episode_class: type, path: Path, seed: int) -> PreparedEpisode | None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
@@ -26,7 +25,8 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.catalogue import filter_entry
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
-from aligngym.scenarios.campaign.executors import start_worker, stopped_on_error, usable_cores
+from aligngym.scenarios.campaign.executors import (can_fork_workers, start_worker,
+                                                   stopped_on_error, usable_cores)
 from aligngym.scenarios.campaign.experiment import Experiment, FilterRun
 from aligngym.scenarios.campaign.runs import (analyse_starts, concatenate_results,
                                               member_batch, run_members)
@@ -78,8 +78,8 @@ def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
 
 
 _SHARED: tuple | None = None
-"""(experiment, members, starts) of the filter phase in progress: forked workers inherit
-it, so that a task carries only a filter name and member indices."""
+"""A filter worker's (experiment, members, starts), set when it starts (``_filter_worker``):
+a task carries only a filter name and member indices."""
 
 
 def _run_task(name: str, index: np.ndarray) -> FineResult:
@@ -96,27 +96,25 @@ def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
     run's filter epochs, to plan the work."""
     from tqdm import tqdm
 
-    global _SHARED
     if not episodes or not filters:
         return []
     members, starts = member_batch(start_errors, episodes)
     processes = max(1, min(workers, usable_cores()))
     tasks = plan_filter_tasks(filters, experiment, len(members), epochs, processes)
-    parallel = (processes > 1 and len(tasks) > 1 and sys.platform.startswith("linux")
-                and sum(t.work for t in tasks) >= PARALLEL_MIN_WORK and not _ray_started())
+    parallel = (processes > 1 and len(tasks) > 1 and can_fork_workers()
+                and sum(t.work for t in tasks) >= PARALLEL_MIN_WORK)
     results: dict[int, FineResult] = {}
     bar = tqdm(total=len(tasks), disable=not progress, desc="filter runs (chunks)")
-    _SHARED = (experiment, members, starts)
     try:
         if not parallel:
             for i, task in enumerate(tasks):
                 raise_if_interrupted()
-                results[i] = _run_task(task.name, task.index)
+                results[i] = run_members(task.name, task.index, members, starts, experiment)
                 bar.update()
         else:
-            _run_in_processes(tasks, min(processes, len(tasks)), results, bar)
+            _run_in_processes(tasks, min(processes, len(tasks)), results, bar,
+                              (experiment, members, starts))
     finally:
-        _SHARED = None
         bar.close()
     runs: list[FilterRun] = []
     for name in filters:
@@ -126,20 +124,15 @@ def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
     return runs
 
 
-def _ray_started() -> bool:
-    """Ray is initialised in this process (an ``--executor ray`` preparation)."""
-    ray = sys.modules.get("ray")
-    return bool(ray is not None and getattr(ray, "is_initialized", lambda: False)())
-
-
 def _run_in_processes(tasks: list[FilterTask], processes: int,
-                      results: dict[int, FineResult], bar: Any) -> None:
-    """Forked workers (one BLAS thread each, Ctrl-C left to this process), the largest
-    tasks first; on an interruption or an error the pool is stopped at once."""
+                      results: dict[int, FineResult], bar: Any, shared: tuple) -> None:
+    """Forked workers (one BLAS thread each, Ctrl-C left to this process) that inherit
+    ``shared`` (experiment, members, starts), the largest tasks first; on an
+    interruption or an error the pool is stopped at once."""
     pool = ProcessPoolExecutor(max_workers=processes,
                                mp_context=multiprocessing.get_context("fork"),
                                initializer=_filter_worker,
-                               initargs=(os.getpid(), _SHARED))
+                               initargs=(os.getpid(), shared))
     with stopped_on_error(pool):
         order = sorted(range(len(tasks)), key=lambda i: -tasks[i].work)
         futures = {pool.submit(_run_task, tasks[i].name, tasks[i].index): i for i in order}
