@@ -49,6 +49,9 @@ SIGMA_DASH = (0, (1, 1.5))
 MAX_PLOTTED_EPOCHS = 2000
 """Longer series are drawn at every n-th epoch (the statistics use every epoch)."""
 DPI = 100
+PNG_OPTIONS = {"pil_kwargs": {"compress_level": 1}}
+"""PNG compression (zlib) at level 1 (of 9; 6 is the default): a fifth of its time for
+files about 1.3 times larger."""
 
 
 def line_style(i: int) -> dict:
@@ -443,7 +446,7 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
     fig.suptitle(title + " (line: median)")
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.06, top=0.87, hspace=0.1,
                         wspace=0.16)   # fixed: tight_layout would double the cost
-    save_figure(fig, path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return path
 
@@ -515,7 +518,7 @@ def plot_final_errors(result, start: str, path: Path, twins: dict | None = None)
     fig.suptitle(f"Final attitude error from the {start} start, {len(result.seeds)} episodes "
                  "(boxes: those not diverged)")
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.15, top=0.8, wspace=0.3)
-    save_figure(fig, path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return path
 
@@ -545,7 +548,7 @@ def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float
     ax.set_title(f"Heading convergence from the {start} start: |heading error| <= "
                  f"{threshold_arcmin:g}' from then to the end")
     fig.subplots_adjust(left=0.07, right=0.7, bottom=0.11, top=0.92)
-    save_figure(fig, path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return path
 
@@ -655,7 +658,7 @@ def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
     axes[0].set_title(f"NEES of the {dof} states the truth knows, {start} start "
                       "(episodes not diverged)")
     fig.subplots_adjust(left=0.07, right=0.7, bottom=0.07, top=0.95, hspace=0.08)
-    save_figure(fig, path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return path
 
