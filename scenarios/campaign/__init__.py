@@ -2,7 +2,7 @@
 
 An ``Experiment`` (``experiment``) is run by ``run_campaign`` (``engine``): the output
 directory is claimed through its manifest (``manifest``), the episodes are prepared in
-parallel (``executors``: local processes or Ray) and written to disk one at a time,
+parallel (``executors``: local processes, Ray, or one registered) and written to disk one at a time,
 atomically (``episodes``), so an interrupted campaign keeps what finished and ``resume``
 continues it; the filters then run batched over all episodes, alongside each other in
 worker processes (``filtering``, ``runs``);
@@ -11,14 +11,15 @@ worker processes (``filtering``, ``runs``);
 from aligngym.scenarios.campaign.engine import run_campaign
 from aligngym.scenarios.campaign.episodes import (GnssEpisode, PreparedEpisode, episode_seeds,
                                                   simulate_screened)
-from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
+from aligngym.scenarios.campaign.executors import (EXECUTORS, Executor, prepare_all,
+                                                   register_executor)
 from aligngym.scenarios.campaign.experiment import (AXES, CampaignResult, Experiment, FilterRun,
                                                     fine_summary, format_fine_table, setting)
 from aligngym.scenarios.campaign.filtering import run_filters
 from aligngym.scenarios.campaign.runs import (analyse_run, concatenate_results, episode_metrics,
                                               run_filter)
 
-__all__ = ["AXES", "EXECUTORS", "CampaignResult", "Experiment", "FilterRun", "GnssEpisode",
+__all__ = ["AXES", "EXECUTORS", "CampaignResult", "Executor", "Experiment", "FilterRun", "GnssEpisode",
            "PreparedEpisode", "analyse_run", "concatenate_results", "episode_metrics",
-           "episode_seeds", "fine_summary", "format_fine_table", "prepare_all",
+           "episode_seeds", "fine_summary", "format_fine_table", "prepare_all", "register_executor",
            "run_campaign", "run_filter", "run_filters", "setting", "simulate_screened"]

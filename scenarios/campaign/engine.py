@@ -9,7 +9,7 @@ from pathlib import Path
 
 from aligngym.estimators.model import whole_steps
 from aligngym.scenarios.campaign.episodes import episode_seeds
-from aligngym.scenarios.campaign.executors import EXECUTORS, prepare_all
+from aligngym.scenarios.campaign.executors import executor_named, prepare_all
 from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
 from aligngym.scenarios.campaign.manifest import campaign_lock, check_manifest
 from aligngym.scenarios.campaign.filtering import run_filters
@@ -21,18 +21,16 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
                  resume: bool = False, workers: int | None = None,
                  progress: bool = True, executor: str = "local",
                  address: str | None = None, force: bool = False) -> CampaignResult:
-    """Run an experiment's campaign; see the module docstring. executor: "local"
-    (processes) or "ray" (tasks on a local Ray instance, or the cluster at address)."""
+    """Run an experiment's campaign; see the module docstring. executor: the name of a
+    registered one (``executors.EXECUTORS``): "local" (processes), "ray" (tasks on a local
+    Ray instance, or the cluster at address) or one of ``register_executor``'s."""
     filters = list(filters or experiment.default_filters)
     experiment.check(experiment.scenario_config())   # the file first: it is the cheaper
     experiment.check_filters(filters)                # (a sparse grid counts its points)
     if episodes < 1:
         raise ConfigError(f"--episodes = {episodes} must be >= 1")
     check_campaign_memory(experiment, episodes, filters)   # before anything is written
-    if executor not in EXECUTORS:
-        raise ConfigError(f"--executor {executor!r} is unknown; valid: " + ", ".join(EXECUTORS))
-    if address is not None and executor != "ray":
-        raise ConfigError("--address needs --executor ray")
+    executor_named(executor, address)        # a known name, and an address it takes
     workers = workers or os.cpu_count() or 1
     out = Path(out_dir) if out_dir is not None else None
     if out is None:

@@ -1,5 +1,6 @@
-"""Where episodes are prepared: this process, local worker processes, or Ray tasks;
-each finished episode is saved at once, so an interrupted campaign keeps it."""
+"""Where episodes are prepared: executors, chosen by name from a registry (``EXECUTORS``:
+"local" processes, "ray" tasks; ``register_executor`` adds one); each finished episode
+is saved at once, so an interrupted campaign keeps it."""
 from __future__ import annotations
 
 import os
@@ -9,7 +10,7 @@ import zipfile
 import zlib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Callable, Iterator, Protocol
 from pathlib import Path
 
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
@@ -17,15 +18,82 @@ from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.interrupts import raise_if_interrupted
 
+Finish = Callable[[int, PreparedEpisode], None]
+"""What an executor hands each prepared episode to, with its seed, as it arrives."""
 
-EXECUTORS = ("local", "ray")
+
+class Executor(Protocol):
+    """Prepares a campaign's episodes somewhere: ``prepare`` calls
+    ``experiment.prepare_episode(seed)`` for every seed, in any order and anywhere, and
+    hands each episode to ``finish(seed, episode)`` in this process as soon as it has
+    it (``finish`` saves it; it raises on Ctrl-C, which must stop the work)."""
+
+    takes_address: bool
+    """Whether the executor joins a cluster at ``--address``."""
+
+    def prepare(self, experiment: Experiment, seeds: list[int], finish: Finish,
+                workers: int, address: str | None) -> None: ...
+
+
+class LocalProcesses:
+    """Local worker processes, no more than ``workers`` and the cores (one process, this
+    one, for a single worker or a single episode)."""
+
+    takes_address = False
+
+    def prepare(self, experiment: Experiment, seeds: list[int], finish: Finish,
+                workers: int, address: str | None = None) -> None:
+        if workers <= 1 or len(seeds) <= 1:
+            for s in seeds:
+                finish(s, experiment.prepare_episode(s))
+        else:
+            _prepare_in_processes(experiment, seeds, finish, workers)
+
+
+class RayTasks:
+    """One Ray task per episode, on a local Ray instance of ``workers`` CPUs or the
+    cluster at ``address`` (``_prepare_on_ray``)."""
+
+    takes_address = True
+
+    def prepare(self, experiment: Experiment, seeds: list[int], finish: Finish,
+                workers: int, address: str | None = None) -> None:
+        _prepare_on_ray(experiment, seeds, finish, workers, address)
+
+
+EXECUTORS: dict[str, Executor] = {"local": LocalProcesses(), "ray": RayTasks()}
+"""The executors by the name ``--executor`` and ``run_campaign(executor=)`` take."""
+
+
+def register_executor(name: str, executor: Executor) -> None:
+    """Make executor available as ``run_campaign(..., executor=name)`` (a name taken is
+    refused: one name, one executor)."""
+    if name in EXECUTORS:
+        raise ValueError(f"executor {name!r} is registered already")
+    missing = [a for a in ("prepare", "takes_address") if not hasattr(executor, a)]
+    if missing:
+        raise TypeError(f"executor {name!r} lacks {', '.join(missing)} (the Executor "
+                        "protocol)")
+    EXECUTORS[name] = executor
+
+
+def executor_named(name: str, address: str | None = None) -> Executor:
+    """The registered executor of that name (one-line ConfigError naming the valid ones),
+    checked against address."""
+    if name not in EXECUTORS:
+        raise ConfigError(f"--executor {name!r} is unknown; valid: " + ", ".join(EXECUTORS))
+    executor = EXECUTORS[name]
+    if address is not None and not executor.takes_address:
+        takers = [n for n, e in EXECUTORS.items() if e.takes_address]
+        raise ConfigError(f"--address needs --executor {' or '.join(takers)}")
+    return executor
 
 
 def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
                 resume: bool, workers: int, progress: bool = True, executor: str = "local",
                 address: str | None = None) -> list[PreparedEpisode]:
-    """Prepare the episodes in parallel, in local processes or as Ray tasks
-    (``executor``; ``address``: a Ray cluster's, None starts a local instance with
+    """Prepare the episodes with the executor of that name (``EXECUTORS``: local
+    processes, Ray tasks; ``address``: a Ray cluster's, None starts a local instance with
     ``workers`` CPUs); each episode is saved by this process as soon as it arrives, so
     an interrupted campaign keeps its finished episodes whichever executor ran them.
     With resume, episodes already on disk are loaded instead (one that does not load is
@@ -56,14 +124,9 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
         done[s] = episode
         bar.update()
 
+    runner = executor_named(executor, address)
     try:
-        if executor == "ray":
-            _prepare_on_ray(experiment, todo, finish, workers, address)
-        elif workers <= 1 or len(todo) <= 1:
-            for s in todo:
-                finish(s, experiment.prepare_episode(s))
-        else:
-            _prepare_in_processes(experiment, todo, finish, workers)
+        runner.prepare(experiment, todo, finish, workers, address)
     finally:
         bar.close()                # before any message about an interruption
     return [done[s] for s in seeds]

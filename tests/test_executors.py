@@ -1,0 +1,67 @@
+"""The executor registry: a campaign's episodes prepared by an executor registered by
+name (``register_executor``) give the local executor's campaign, to the bit; names and
+addresses are checked in one line; the command line offers the built-in ones."""
+import numpy as np
+import pytest
+
+from aligngym.scenarios.campaign import EXECUTORS, register_executor, run_campaign
+from aligngym.scenarios.campaign.executors import LocalProcesses, executor_named
+from aligngym.scenarios.cli import build_parser
+from aligngym.scenarios.config import ConfigError
+from aligngym.scenarios.experiments import experiment
+
+SMALL = dict(episodes=3, seed=4, filters=["ekf"], progress=False, workers=1)
+
+
+class Backwards:
+    """Prepares the seeds last first, in this process, and records what it was asked."""
+
+    takes_address = True
+
+    def __init__(self):
+        self.asked = []
+
+    def prepare(self, experiment, seeds, finish, workers, address):
+        self.asked.append((list(seeds), workers, address))
+        for seed in reversed(seeds):
+            finish(seed, experiment.prepare_episode(seed))
+
+
+@pytest.fixture
+def backwards():
+    executor = Backwards()
+    register_executor("backwards", executor)
+    yield executor
+    del EXECUTORS["backwards"]
+
+
+def test_a_registered_executor_runs_the_campaign(backwards):
+    exp = experiment("paper002", fine_duration=60.0)
+    local = run_campaign(exp, **SMALL)
+    mine = run_campaign(exp, executor="backwards", address="cluster:1", **SMALL)
+    assert backwards.asked == [(local.seeds, 1, "cluster:1")]
+    assert mine.seeds == local.seeds
+    for a, b in zip(mine.runs, local.runs):
+        np.testing.assert_array_equal(a.error_n, b.error_n)
+        np.testing.assert_array_equal(a.result.P, b.result.P)
+
+
+def test_registry_refuses_in_one_line(backwards):
+    with pytest.raises(ValueError, match="'backwards' is registered already"):
+        register_executor("backwards", Backwards())
+    with pytest.raises(TypeError, match="lacks prepare, takes_address"):
+        register_executor("nothing", object())
+    with pytest.raises(ConfigError, match=r"--executor 'dask' is unknown; valid: local, "
+                                          r"ray, backwards$"):
+        executor_named("dask")
+    with pytest.raises(ConfigError, match="--address needs --executor ray or backwards"):
+        executor_named("local", address="auto")
+    assert isinstance(executor_named("local"), LocalProcesses)
+
+
+def test_the_command_line_offers_the_built_in_executors():
+    parser = build_parser()
+    for command in ("bench", "bank"):
+        sub = parser._subparsers._group_actions[0].choices[command]
+        (action,) = [a for a in sub._actions if a.dest == "executor"]
+        assert tuple(action.choices) == ("local", "ray") == tuple(EXECUTORS)[:2]
