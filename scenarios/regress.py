@@ -66,15 +66,11 @@ def flatten(tree: dict | list | float, prefix: str = "") -> dict[str, float]:
 
 
 def campaign_metrics(paper: str, workers: int | None = None) -> dict[str, float]:
-    """Run a paper's regression campaign and flatten its results."""
-    from aligngym.scenarios.campaign import run_campaign
-    from aligngym.scenarios.experiments import experiment
+    """Run a paper's regression campaign (``campaign.plan.regress_plan``) and flatten its
+    results."""
+    from aligngym.scenarios.campaign.plan import regress_plan
 
-    settings = campaigns()[paper]
-    result = run_campaign(experiment(paper, **settings.get("experiment", {})),
-                          episodes=settings["episodes"],
-                          seed=settings["seed"], filters=settings["filters"],
-                          workers=workers, progress=False)
+    result = regress_plan(paper).run(workers=workers, progress=False)
     metrics = flatten(result.summary())
     for run in result.runs:
         metrics[f"nees_final_mean/{run.filter}/{run.start}"] = float(np.mean(run.nees[:, -1]))

@@ -6,7 +6,9 @@ pipeline (``Experiment.claims``): the numbers that test it (paths into the campa
 JSON summary, as ``regress`` flattens it, or functions of the campaign), the test, and,
 for a claim that does not hold here, the measured reason (with where the evidence is:
 the docs page, the tests, an independent implementation). A claim names the campaign it
-needs (setup, settings, filters); claims that need the same campaign share one run.
+needs (setup, settings, filters); claims that need the same campaign share one run
+(``campaign.plan.claims_plan``: every paper's campaigns planned and checked before the
+first runs).
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from typing import Callable
 
 from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.campaign.claims import Claim
+from aligngym.scenarios.campaign.plan import ClaimCampaign
 
 
 @dataclass
@@ -26,16 +29,6 @@ class Verdict:
     claim: Claim
     measured: dict[str, float]
     reproduced: bool
-
-
-def campaign_plan(paper: str, episodes: int | None = None, seed: int | None = None
-                  ) -> tuple[int, int]:
-    """(episodes, seed) of a paper's claim campaigns: the given ones, else its own
-    (``Experiment.reproduce``; 20 episodes, seed 0 where it declares none)."""
-    from aligngym.scenarios.experiments import experiment_class
-    plan = experiment_class(paper).reproduce or {}
-    return (episodes or plan.get("episodes", 20),
-            plan.get("seed", 0) if seed is None else seed)
 
 
 def measure(claim: Claim, result, metrics: dict[str, float]) -> dict[str, float]:
@@ -51,37 +44,33 @@ def measure(claim: Claim, result, metrics: dict[str, float]) -> dict[str, float]
     return out
 
 
-def run_claims(paper: str, episodes: int | None = None, seed: int | None = None,
-               out_dir: Path | None = None, workers: int | None = None,
-               log: Callable[[str], None] = print) -> list[Verdict]:
-    """Run the campaigns a paper's claims need and judge each claim; with out_dir, each
-    campaign's outputs (tables, results, figures) go to out_dir/<paper>/<setup>[-k]/."""
-    from aligngym.scenarios.campaign import run_campaign
-    from aligngym.scenarios.experiments import experiment, experiment_class
+def run_claims(plan: list[ClaimCampaign], out_dir: Path | None = None,
+               workers: int | None = None, log: Callable[[str], None] = print
+               ) -> list[Verdict]:
+    """Run a claims plan's campaigns (``campaign.plan.claims_plan``) and judge each claim;
+    with out_dir, each campaign's outputs (tables, results, figures) go to
+    out_dir/<paper>/<setup>-<k>/."""
     from aligngym.scenarios.regress import flatten
     from aligngym.scenarios.report import write_outputs
 
-    cls = experiment_class(paper)
-    episodes, seed = campaign_plan(paper, episodes, seed)
-    groups: dict[tuple, list[Claim]] = {}
-    for claim in cls.claims:
-        groups.setdefault(claim.campaign_key(), []).append(claim)
     verdicts = []
-    for i, claims in enumerate(groups.values()):
-        first = claims[0]
-        exp = experiment(paper, first.setup, **first.settings)
+    of_paper = {c.paper: sum(d.paper == c.paper for d in plan) for c in plan}
+    number: dict[str, int] = {}
+    for campaign in plan:
+        paper, spec = campaign.paper, campaign.spec
+        number[paper] = number.get(paper, 0) + 1
+        first = campaign.claims[0]
         start = time.perf_counter()
-        result = run_campaign(exp, episodes=episodes, seed=seed,
-                              filters=list(first.filters) or None, workers=workers,
-                              progress=False)
+        result = spec.run(workers=workers, progress=False)
         metrics = flatten(result.summary())
-        log(f"{paper}: campaign {i + 1} of {len(groups)} ({first.setup} setup"
-            + "".join(f", {k} = {v}" for k, v in first.settings.items())
-            + f"; {episodes} episodes, seed {seed}) in {time.perf_counter() - start:.0f} s")
+        log(f"{paper}: campaign {number[paper]} of {of_paper[paper]} ({first.setup} setup"
+            + "".join(f", {key} = {value}" for key, value in first.settings.items())
+            + f"; {spec.episodes} episodes, seed {spec.seed}) in "
+            f"{time.perf_counter() - start:.0f} s")
         if out_dir is not None:
-            write_outputs(result, Path(out_dir) / paper / f"{first.setup}-{i + 1}", None,
+            write_outputs(result, Path(out_dir) / paper / spec.label, None,
                           command=["aligngym", "reproduce", paper])
-        for claim in claims:
+        for claim in campaign.claims:
             numbers = measure(claim, result, metrics)
             ok = all(math.isfinite(v) for v in numbers.values()) and bool(claim.holds(numbers))
             verdicts.append(Verdict(paper, claim, numbers, ok))
@@ -144,16 +133,18 @@ def summary_page(verdicts: list[Verdict], episodes: dict[str, int], seconds: flo
 
 def reproduce(papers: list[str], episodes: int | None = None, seed: int | None = None,
               out_dir: Path | None = None, workers: int | None = None,
-              log: Callable[[str], None] = print) -> tuple[list[Verdict], str]:
+              log: Callable[[str], None] = print, plan: list[ClaimCampaign] | None = None
+              ) -> tuple[list[Verdict], str]:
     """Every named paper's claims; with out_dir also each campaign's outputs, a page per
     paper (DIR/PAPER/claims.md, with the figures) and DIR/claims.md (every claim, one line
-    each). Returns the verdicts and the printed table."""
+    each). plan: their ``claims_plan``, if made already (it checks every campaign before
+    the first runs). Returns the verdicts and the printed table."""
+    from aligngym.scenarios.campaign.plan import claims_plan, reproduce_counts
+
     start = time.perf_counter()
-    verdicts: list[Verdict] = []
-    counts = {}
-    for paper in papers:
-        counts[paper] = campaign_plan(paper, episodes)[0]
-        verdicts += run_claims(paper, episodes, seed, out_dir, workers, log)
+    plan = claims_plan(papers, episodes, seed) if plan is None else plan
+    counts = {paper: reproduce_counts(paper, episodes)[0] for paper in papers}
+    verdicts = run_claims(plan, out_dir, workers, log)
     text = format_verdicts(verdicts)
     if out_dir is not None:
         out = Path(out_dir)

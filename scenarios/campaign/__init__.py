@@ -6,7 +6,9 @@ parallel (``executors``: local processes, Ray, or one registered) and written to
 atomically (``episodes``), so an interrupted campaign keeps what finished and ``resume``
 continues it; the filters then run batched over all episodes, alongside each other in
 worker processes (``filtering``, ``runs``);
-``scenarios.report`` writes the tidy table, time series, plots and JSON.
+``scenarios.report`` writes the tidy table, time series, plots and JSON. The commands plan
+their campaigns first (``plan``: bench's sweep, regress, reproduce's claims), every one
+checked before the first runs.
 """
 from aligngym.scenarios.campaign.engine import run_campaign
 from aligngym.scenarios.campaign.episodes import (GnssEpisode, PreparedEpisode, episode_seeds,

@@ -25,11 +25,7 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
     registered one (``executors.EXECUTORS``): "local" (processes), "ray" (tasks on a local
     Ray instance, or the cluster at address) or one of ``register_executor``'s."""
     filters = list(filters or experiment.default_filters)
-    experiment.check(experiment.scenario_config())   # the file first: it is the cheaper
-    experiment.check_filters(filters)                # (a sparse grid counts its points)
-    if episodes < 1:
-        raise ConfigError(f"--episodes = {episodes} must be >= 1")
-    check_campaign_memory(experiment, episodes, filters)   # before anything is written
+    check_campaign(experiment, episodes, filters)
     executor_named(executor, address)        # a known name, and an address it takes
     workers = workers or os.cpu_count() or 1
     out = Path(out_dir) if out_dir is not None else None
@@ -44,6 +40,18 @@ def run_campaign(experiment: Experiment, episodes: int = 50, seed: int = 0,
                   "seed): its finished episodes are reused", file=sys.stderr)
         return _run(experiment, episodes, seed, filters, out, resume or same, workers, progress,
                     executor, address)
+
+
+def check_campaign(experiment: Experiment, episodes: int, filters: list[str]) -> None:
+    """One-line ConfigError, before anything is simulated or written, for a campaign that
+    cannot run: the scenario against the experiment (first: the cheaper check), the
+    filters against its model (a sparse grid counts its points), the episodes, and the
+    memory it would take (``check_campaign_memory``)."""
+    experiment.check(experiment.scenario_config())
+    experiment.check_filters(filters)
+    if episodes < 1:
+        raise ConfigError(f"--episodes = {episodes} must be >= 1")
+    check_campaign_memory(experiment, episodes, filters)
 
 
 def campaign_epochs(experiment: Experiment) -> int:

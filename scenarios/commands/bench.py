@@ -112,10 +112,9 @@ def add_setting_options(bench: argparse.ArgumentParser, experiment: type) -> Non
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from aligngym.scenarios.campaign import run_campaign
-    from aligngym.scenarios.campaign.engine import check_campaign_memory
+    from aligngym.scenarios.campaign.plan import bench_plan
     from aligngym.scenarios.config import ConfigError
-    from aligngym.scenarios.experiments import experiment, experiment_class
+    from aligngym.scenarios.experiments import experiment_class
     from aligngym.scenarios.report import format_tables, write_outputs
 
     if args.resume and not args.out:
@@ -123,47 +122,37 @@ def run(args: argparse.Namespace) -> int:
     cls = experiment_class(args.paper)
     settings = {} if args.scenario is None else {"scenario": args.scenario}
     settings.update(settings_of(cls, args))
-    sweep = next((f for f in cls.flagged_settings()
-                  if f.metadata["sweep"] and settings.get(f.name) == "all"), None)
-    levels = [None] if sweep is None else list(sweep.metadata["choices"])  # one campaign each
-    episodes = args.episodes or cls.default_episodes
-    experiments = []        # every campaign's settings checked before anything is written
-    for level in levels:
-        exp = experiment(args.paper, args.setup,
-                         **(settings if level is None else {**settings, sweep.name: level}))
-        filters = (list(exp.default_filters) if args.filters is None
-                   else [f.strip() for f in args.filters.split(",") if f.strip()])
-        if not filters:
-            raise ConfigError("--filters is empty; give at least one filter name")
-        exp.check(exp.scenario_config())
-        exp.check_filters(filters)
-        check_campaign_memory(exp, episodes, filters)   # before --out is created
-        experiments.append((level, exp, filters))
+    filters = (None if args.filters is None
+               else [f.strip() for f in args.filters.split(",") if f.strip()])
+    # every campaign checked before anything is written (--out is not created yet)
+    plan = bench_plan(args.paper, args.setup, settings, args.episodes, args.seed, filters)
     if args.json:
         check_writable(args.json, "--json")
     summaries, elapsed = [], 0.0
-    for level, exp, filters in experiments:
-        out = args.out if level is None or args.out is None else str(Path(args.out) / level)
+    for spec in plan.specs:
+        out = (args.out if plan.sweep is None or args.out is None
+               else str(Path(args.out) / spec.label))
         start = time.perf_counter()
         with holding(out):            # the campaign and its outputs: one writer
-            result = run_campaign(exp, episodes=episodes, seed=args.seed, filters=filters,
-                                  out_dir=out, resume=args.resume, workers=args.workers,
-                                  executor=args.executor, address=args.address,
-                                  force=args.force)
+            result = spec.run(out_dir=out, resume=args.resume, workers=args.workers,
+                              executor=args.executor, address=args.address,
+                              force=args.force)
             elapsed += time.perf_counter() - start
             print(format_tables(result))
-            written = write_outputs(result, out, args.json if level is None else None,
+            written = write_outputs(result, out, args.json if plan.sweep is None else None,
                                     command=args.command_line, figures=not args.no_figures,
                                     processes=args.workers)
         for path in written:
             print(f"wrote {path}")
         summaries.append(result.summary())
-    if sweep is not None and args.json:
+    if plan.sweep is not None and args.json:
         from aligngym.scenarios.atomic import write_json
-        write_json(args.json, cls.merge_sweep(sweep.name, summaries))
+        write_json(args.json, cls.merge_sweep(plan.sweep, summaries))
         print(f"wrote {args.json}")
-    print(f"{episodes} episodes x {len(filters)} filters x {len(exp.starts)} start(s)"
-          + (f" x {len(levels)} {sweep.name} values" if sweep is not None else "")
+    last = plan.specs[-1]
+    print(f"{last.episodes} episodes x {len(last.filters)} filters x "
+          f"{len(last.experiment.starts)} start(s)"
+          + (f" x {len(plan.specs)} {plan.sweep} values" if plan.sweep is not None else "")
           + f" in {elapsed:.1f} s")
     return 0
 

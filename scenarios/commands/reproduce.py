@@ -28,6 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from aligngym.scenarios.campaign.plan import claims_plan
     from aligngym.scenarios.config import ConfigError
     from aligngym.scenarios.reproduce import reproduce
 
@@ -38,18 +39,12 @@ def run(args: argparse.Namespace) -> int:
     if unknown or not papers:
         raise ConfigError(f"reproduce: unknown paper {(unknown or [args.papers])[0]!r}; "
                           "valid: all, " + ", ".join(names))
-    if args.episodes is not None:        # every claim campaign held, before --out is made
-        from aligngym.scenarios.campaign.engine import check_campaign_memory
-        from aligngym.scenarios.experiments import experiment, experiment_class
-        for paper in papers:
-            for claim in experiment_class(paper).claims:
-                exp = experiment(paper, claim.setup, **claim.settings)
-                check_campaign_memory(exp, args.episodes,
-                                      list(claim.filters) or list(exp.default_filters))
+    # every claim campaign planned and checked (the memory too) before --out is made
+    plan = claims_plan(papers, args.episodes, args.seed)
     if args.out:
         check_writable(str(Path(args.out) / "claims.md"), "--out")
     _, text = reproduce(papers, episodes=args.episodes, seed=args.seed,
                         out_dir=Path(args.out) if args.out else None, workers=args.workers,
-                        log=lambda line: print(line, flush=True))
+                        log=lambda line: print(line, flush=True), plan=plan)
     print(text)
     return 0
