@@ -45,6 +45,8 @@ N_STATES = 10
 LAYOUT = StateLayout({"euler_error": ALPHA, "velocity_error": DV, "accel_bias": NABLA,
                       "gyro_bias": EPS}, angles=(0, 1, 2))
 _H = np.hstack([np.zeros((2, 3)), np.eye(2), np.zeros((2, 5))])
+_IDENTITY = np.eye(N_STATES)[None]
+"""The (1, 10, 10) identity: the feedback's reset transform outside the Euler block."""
 
 
 # --------------------------------------------------------------------------------------
@@ -682,7 +684,7 @@ class EulerLargeMisalignmentModel(FilterModel):
         self.C0[b] = np.swapaxes(E, -1, -2) @ R @ E @ self.C0[b]
         self._v[b, :2] -= x[b, DV]
         J = reset_jacobian(alpha)
-        Tm = np.broadcast_to(np.eye(N_STATES), (b.size, N_STATES, N_STATES)).copy()
+        Tm = np.repeat(_IDENTITY, b.size, axis=0)
         Tm[:, ALPHA, ALPHA] = J
         P[b] = Tm @ P[b] @ np.swapaxes(Tm, -1, -2)
         x[b, ALPHA] = 0.0

@@ -86,9 +86,12 @@ def normalised_innovation_squared(innovation: np.ndarray, S: np.ndarray, valid: 
     """e^T S^-1 e over the valid components (B,) and their count (B,): NaN where none is
     valid, where the episode is not live, or where S is singular."""
     eye = np.eye(innovation.shape[-1])
-    e = np.where(live[:, None] & valid, innovation, 0.0)
-    S = np.where(live[:, None, None] & valid[:, :, None] & valid[:, None, :], S, eye)
-    S = np.where(np.isfinite(S), S, eye)
+    used = live[:, None] & valid
+    e = np.where(used, innovation, 0.0)
+    if not used.all():                  # every component of every episode: S as it is
+        S = np.where(used[:, :, None] & used[:, None, :], S, eye)
+    if not np.isfinite(S).all():
+        S = np.where(np.isfinite(S), S, eye)
     nis = np.einsum("bi,bi->b", e, solve_each(S, e[..., None])[0][..., 0])
     dof = valid.sum(-1)
     return np.where((dof > 0) & live, nis, np.nan), dof
@@ -261,7 +264,7 @@ class GaussianFilter:
         self.health.flag(~positive_definite(S), t, "innovation covariance not positive "
                          "definite")
         live = self.live
-        S_safe = np.where(live[:, None, None], S, np.eye(S.shape[-1]))
+        S_safe = S if live.all() else np.where(live[:, None, None], S, np.eye(S.shape[-1]))
         S_inv_HP, solved = solve_each(S_safe, HP)
         if not solved.all():               # an episode's S singular to working precision
             self.health.flag(~solved, t, "innovation covariance singular")

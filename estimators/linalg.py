@@ -10,7 +10,7 @@ def positive_definite(A: np.ndarray) -> np.ndarray:
     """(B,) True where A[b] is finite and positive definite."""
     ok = np.all(np.isfinite(A), axis=(-2, -1))
     try:
-        np.linalg.cholesky(np.where(ok[:, None, None], A, np.eye(A.shape[-1])))
+        np.linalg.cholesky(A if ok.all() else np.where(ok[:, None, None], A, np.eye(A.shape[-1])))
         return ok
     except np.linalg.LinAlgError:
         for b in np.flatnonzero(ok):

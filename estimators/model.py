@@ -161,6 +161,8 @@ def whole_steps(duration: float, step: float) -> int:
 def per_member(scale: Scale, batch: int) -> Array:
     """A noise multiplier as (B, 1, 1), to multiply a (B, n, n) covariance; ``[:, 0]``
     gives (B, 1) for a (B, n) diagonal."""
+    if isinstance(scale, (int, float)):          # one number (most calls): no broadcast
+        return np.full((batch, 1, 1), float(scale))
     return np.broadcast_to(np.reshape(np.asarray(scale, float), (-1, 1, 1)), (batch, 1, 1))
 
 
