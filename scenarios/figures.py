@@ -50,8 +50,9 @@ MAX_PLOTTED_EPOCHS = 2000
 """Longer series are drawn at every n-th epoch (the statistics use every epoch)."""
 DPI = 100
 PNG_OPTIONS = {"pil_kwargs": {"compress_level": 1}}
-"""PNG compression (zlib) at level 1 (of 9; 6 is the default): a fifth of its time for
-files about 1.3 times larger."""
+"""PNG compression (zlib) at level 1 of 9: at the default 6 it took a tenth of the
+drawing time (0.39 of 4.1 s for paper 003's eight figures), at 1 a small part of that,
+for files 11 % larger (1.31 -> 1.45 MB)."""
 
 
 def line_style(i: int) -> dict:

@@ -19,11 +19,15 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from aligngym.scenarios.atomic import json_text, write_text
 from aligngym.scenarios.config import ConfigError
+
+if TYPE_CHECKING:
+    from aligngym.scenarios.campaign.plan import CampaignSpec
 
 BASELINE_DIR = Path(__file__).resolve().parent / "data" / "baselines"
 
@@ -65,12 +69,14 @@ def flatten(tree: dict | list | float, prefix: str = "") -> dict[str, float]:
     return out
 
 
-def campaign_metrics(paper: str, workers: int | None = None) -> dict[str, float]:
-    """Run a paper's regression campaign (``campaign.plan.regress_plan``) and flatten its
-    results."""
+def campaign_metrics(paper: str, workers: int | None = None,
+                     spec: CampaignSpec | None = None) -> dict[str, float]:
+    """Run a paper's regression campaign (spec: its ``campaign.plan.regress_plan``, if
+    made already) and flatten its results."""
     from aligngym.scenarios.campaign.plan import regress_plan
 
-    result = regress_plan(paper).run(workers=workers, progress=False)
+    spec = regress_plan([paper])[paper] if spec is None else spec
+    result = spec.run(workers=workers, progress=False)
     metrics = flatten(result.summary())
     for run in result.runs:
         metrics[f"nees_final_mean/{run.filter}/{run.start}"] = float(np.mean(run.nees[:, -1]))
@@ -169,11 +175,13 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
     if without:
         raise ConfigError(f"--papers: {', '.join(without)} declares no regression "
                           "campaign (Experiment.regress); with one: " + ", ".join(known))
+    from aligngym.scenarios.campaign.plan import regress_plan
+    plan = regress_plan(papers)          # every paper's campaign checked before the first
     lines, passed = [], True
     for paper in papers:
         path = baseline_path(paper, directory)
         if update:
-            now = campaign_metrics(paper, workers)
+            now = campaign_metrics(paper, workers, plan[paper])
             path.parent.mkdir(parents=True, exist_ok=True)
             write_text(path, json_text({"schema": BASELINE_SCHEMA, "settings": known[paper],
                                         "metrics": now},        # NaN as null: strict JSON
@@ -183,7 +191,7 @@ def regress(papers: list[str], update: bool = False, directory: Path = BASELINE_
         if not path.is_file():
             raise ConfigError(f"no baseline for {paper} at {path}; run with --update")
         stored = read_baseline(path, known[paper])
-        now = campaign_metrics(paper, workers)
+        now = campaign_metrics(paper, workers, plan[paper])
         diffs, missing = compare(stored["metrics"], now)
         bad = [d for d in diffs if not d.ok]
         moved = [d for d in diffs if d.moved and d.ok]

@@ -139,11 +139,12 @@ def reproduce(papers: list[str], episodes: int | None = None, seed: int | None =
     paper (DIR/PAPER/claims.md, with the figures) and DIR/claims.md (every claim, one line
     each). plan: their ``claims_plan``, if made already (it checks every campaign before
     the first runs). Returns the verdicts and the printed table."""
-    from aligngym.scenarios.campaign.plan import claims_plan, reproduce_counts
+    from aligngym.scenarios.campaign.plan import claims_plan
 
     start = time.perf_counter()
+    papers = list(dict.fromkeys(papers))               # a paper named twice runs once
     plan = claims_plan(papers, episodes, seed) if plan is None else plan
-    counts = {paper: reproduce_counts(paper, episodes)[0] for paper in papers}
+    counts = {c.paper: c.spec.episodes for c in plan}
     verdicts = run_claims(plan, out_dir, workers, log)
     text = format_verdicts(verdicts)
     if out_dir is not None:

@@ -3,7 +3,6 @@ campaign per value, reproduce's claims one per distinct campaign they need, regr
 declared one; every spec of a plan is checked before the first one runs."""
 import pytest
 
-from aligngym.scenarios.campaign import plan as planning
 from aligngym.scenarios.campaign.plan import (CampaignSpec, bench_plan, claims_plan,
                                               regress_plan)
 from aligngym.scenarios.config import ConfigError
@@ -68,12 +67,46 @@ def test_claims_share_the_campaigns_they_need():
     assert (default.episodes, default.seed) == (50, 0)       # the paper's own counts
 
 
-def test_regress_is_the_declared_campaign():
+def test_regress_plans_every_paper_declared():
+    papers = list(regress_campaigns())
+    plan = regress_plan(papers)
+    assert list(plan) == papers
     for paper, declared in regress_campaigns().items():
-        spec = regress_plan(paper)
+        spec = plan[paper]
         assert (spec.episodes, spec.seed, spec.filters) == (
             declared["episodes"], declared["seed"], tuple(declared["filters"]))
         for name, value in declared.get("experiment", {}).items():
             have = getattr(spec.experiment, name)
             assert (list(have) if isinstance(have, tuple) else have) == value
-    assert planning.checked([]) == []
+
+
+@pytest.fixture
+def refuse_the_last(monkeypatch):
+    """engine.check_campaign refusing paper004's campaigns (of the last paper named)
+    but its first swing level's (the first campaign of its sweep), and a
+    CampaignSpec.run that records what ran."""
+    from aligngym.scenarios.campaign import engine
+    first_level = experiment_class("paper004").__dataclass_fields__["swing"].metadata[
+        "choices"][0]
+    ran = []
+
+    def check(experiment, episodes, filters):
+        if type(experiment).__module__.endswith("paper004") and experiment.swing != first_level:
+            raise ConfigError("the last campaign refused")
+    monkeypatch.setattr(engine, "check_campaign", check)
+    monkeypatch.setattr(CampaignSpec, "run", lambda spec, **k: ran.append(spec))
+    return ran
+
+
+def test_the_commands_refuse_before_their_first_campaign_runs(refuse_the_last, capsys):
+    """bench's sweep (its last value), regress and reproduce (their last paper): a
+    campaign that cannot run is refused before the first one runs."""
+    from aligngym.scenarios.cli import main
+    from aligngym.scenarios.regress import regress
+    assert main(["bench", "paper004", "--swing", "all", "--episodes", "1", "--filters",
+                 "ekf"]) == 2
+    assert main(["reproduce", "paper003,paper004", "--episodes", "1"]) == 2
+    assert capsys.readouterr().err.count("the last campaign refused") == 2
+    with pytest.raises(ConfigError, match="the last campaign refused"):
+        regress(["paper003", "paper004"])
+    assert refuse_the_last == []

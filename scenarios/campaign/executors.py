@@ -100,6 +100,7 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
     named and simulated again)."""
     from tqdm import tqdm
 
+    runner = executor_named(executor, address)      # before anything is made or drawn
     episode_dir = out_dir / "episodes" if out_dir is not None else None
     if episode_dir is not None:
         episode_dir.mkdir(parents=True, exist_ok=True)
@@ -124,7 +125,6 @@ def prepare_all(experiment: Experiment, seeds: list[int], out_dir: Path | None,
         done[s] = episode
         bar.update()
 
-    runner = executor_named(executor, address)
     try:
         runner.prepare(experiment, todo, finish, workers, address)
     finally:

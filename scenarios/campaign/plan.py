@@ -2,13 +2,14 @@
 
 A plan turns what a command asks for into ``CampaignSpec``s: ``bench`` an experiment
 with its setup and settings, one campaign per value of a swept setting
-(``bench_plan``); ``regress`` each paper's declared regression campaign
+(``bench_plan``); ``regress`` each named paper's declared regression campaign
 (``regress_plan``); ``reproduce`` the campaigns each paper's claims need, claims that
-need the same campaign sharing it (``claims_plan``). Every spec of a plan is checked
-(``CampaignSpec.check``: the scenario, the filters, the episodes, the memory) before the
-first one runs, so a bad setting or a campaign too large for the machine is refused
-before any work; a spec is then executed by ``CampaignSpec.run`` (``run_campaign``,
-with the executor, the workers and the output directory).
+need the same campaign sharing it (``claims_plan``). Each plan checks all its specs
+(``CampaignSpec.check``: the scenario, the filters, the episodes, the memory) as it is
+made, and the commands make the whole plan before they run its first campaign, so a
+bad setting or a campaign too large for the machine is refused before any work; a spec
+is then executed by ``CampaignSpec.run`` (``run_campaign``, with the executor, the
+workers and the output directory).
 """
 from __future__ import annotations
 
@@ -83,14 +84,17 @@ def bench_plan(paper: str, setup: str, settings: dict[str, Any], episodes: int |
     return BenchPlan(checked(specs), None if sweep is None else sweep.name)
 
 
-def regress_plan(paper: str) -> CampaignSpec:
-    """A paper's regression campaign (``Experiment.regress``: episodes, seed, filters and
-    the settings that differ from its defaults)."""
+def regress_plan(papers: list[str]) -> dict[str, CampaignSpec]:
+    """Each named paper's regression campaign (``Experiment.regress``: episodes, seed,
+    filters and the settings that differ from its defaults), each checked."""
     from aligngym.scenarios.experiments import experiment, regress_campaigns
-    declared = regress_campaigns()[paper]
-    return CampaignSpec(experiment(paper, **declared.get("experiment", {})),
-                        declared["episodes"], declared["seed"], tuple(declared["filters"]),
-                        "regress")
+    declared = regress_campaigns()
+    specs = {paper: CampaignSpec(experiment(paper, **declared[paper].get("experiment", {})),
+                                 declared[paper]["episodes"], declared[paper]["seed"],
+                                 tuple(declared[paper]["filters"]))
+             for paper in papers}
+    checked(list(specs.values()))
+    return specs
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from aligngym.scenarios.commands.options import float_option, positive_int, settings_of
+from aligngym.scenarios.commands.options import (EXECUTOR_CHOICES, float_option,
+                                                 integer_option, settings_of)
 from aligngym.scenarios.registry import scenario_names
 
 
@@ -19,10 +20,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bnk.add_argument("--split", choices=["train", "validation", "test"], default="train",
                      help="the seed split (train [0, 1.6e9), validation [1.6e9, 1.8e9), "
                      "test [1.8e9, 2^31 - 1); default: train)")
-    bnk.add_argument("--episodes", type=positive_int("--episodes"), default=100,
+    bnk.add_argument("--episodes", type=integer_option("--episodes"), default=100,
                      metavar="N", help="episodes: the split's seeds FIRST .. FIRST + N - 1 "
                      "(default: 100)")
-    bnk.add_argument("--first", type=positive_int("--first", minimum=0), default=0,
+    bnk.add_argument("--first", type=integer_option("--first", minimum=0), default=0,
                      metavar="K",
                      help="the first episode of the split (default: 0)")
     bnk.add_argument("--episode-length", type=float_option("--episode-length"),
@@ -33,10 +34,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bnk.add_argument("--set", action="append", metavar="NAME=VALUE",
                      help="a setting of the scenario's experiment, as the env's settings "
                      "(e.g. coarse_duration=60); repeatable")
-    bnk.add_argument("--workers", type=positive_int("--workers"), metavar="K",
+    bnk.add_argument("--workers", type=integer_option("--workers"), metavar="K",
                      help="parallel processes, or CPUs of a local Ray instance "
                      "(default: all cores)")
-    bnk.add_argument("--executor", choices=["local", "ray"], default="local",
+    bnk.add_argument("--executor", choices=EXECUTOR_CHOICES, default="local",
                      help="local processes or Ray tasks (default: local)")
     bnk.add_argument("--address", metavar="ADDR", help="with --executor ray: the cluster")
 
@@ -46,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
     from aligngym.scenarios.bank import EpisodeBank, check_split, split_seeds
     from aligngym.scenarios.campaign.engine import check_seed_memory
+    from aligngym.scenarios.campaign.executors import executor_named
     from aligngym.scenarios.config import load_scenario
     from aligngym.scenarios.experiments import env_experiment, experiment_class
 
@@ -60,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     seeds = split_seeds(args.split, args.episodes, args.first)
     experiment = env_experiment(args.scenario, args.episode_length, args.epoch_length,
                                 settings, config=config)
+    executor_named(args.executor, args.address)       # before the bank's directory is made
     bank = EpisodeBank(args.out, experiment)
     start = time.perf_counter()
     simulated = bank.build(seeds, workers=args.workers or os.cpu_count() or 1,

@@ -6,8 +6,8 @@ import argparse
 import time
 from dataclasses import fields
 
-from aligngym.scenarios.commands.options import (check_writable, positive_int, seed_option,
-                                                 settings_of)
+from aligngym.scenarios.commands.options import (EXECUTOR_CHOICES, check_writable,
+                                                 integer_option, seed_option, settings_of)
 from aligngym.scenarios.registry import (SCENARIO_PAPER, experiment_names, scenario_names)
 
 
@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction, bench_details: bool = False,
     bench.add_argument("paper", choices=list(experiment_names()), metavar="EXPERIMENT",
                        help="the experiment: " + ", ".join(experiment_names())
                        + "; 'bench EXPERIMENT --help' lists its settings")
-    bench.add_argument("--episodes", type=positive_int("--episodes"), metavar="N",
+    bench.add_argument("--episodes", type=integer_option("--episodes"), metavar="N",
                        help="Monte Carlo episodes (default: the experiment's"
                        + ("" if experiment is None else f", {experiment.default_episodes}")
                        + ")")
@@ -61,10 +61,10 @@ def add_parser(sub: argparse._SubParsersAction, bench_details: bool = False,
                        help="reuse the episodes already finished in --out")
     bench.add_argument("--force", action="store_true",
                        help="replace the campaign an existing --out holds (default: refuse)")
-    bench.add_argument("--workers", type=positive_int("--workers"), metavar="K",
+    bench.add_argument("--workers", type=integer_option("--workers"), metavar="K",
                        help="parallel processes, or CPUs of a local Ray instance "
                        "(default: all cores)")
-    bench.add_argument("--executor", choices=["local", "ray"], default="local",
+    bench.add_argument("--executor", choices=EXECUTOR_CHOICES, default="local",
                        help="where episodes are prepared: local processes, or Ray tasks "
                        "(pip install -e '.[ray]'; default: local)")
     bench.add_argument("--address", metavar="ADDR",

@@ -9,6 +9,12 @@ from dataclasses import fields
 from typing import NoReturn
 
 
+EXECUTOR_CHOICES = ("local", "ray")
+"""The built-in executors the command line offers (``campaign.executors.EXECUTORS``; one
+registered from Python is for ``run_campaign``), named here so that --help loads no
+campaign code."""
+
+
 class Parser(argparse.ArgumentParser):
     """argparse with one-line errors (no usage dump) and exit status 2."""
 
@@ -48,24 +54,23 @@ def seed_option(text: str) -> int:
     return value
 
 
-def number_option(flag: str, minimum: float | None, strict: bool = False):
-    """Parser of a finite number >= minimum (> with strict; any finite number without a
-    minimum) for the option ``flag``."""
-    bound = ("finite" if minimum is None else f"{'>' if strict else '>='} {minimum:g}")
+def number_option(flag: str, minimum: float, strict: bool = False):
+    """Parser of a finite number >= minimum (> with strict) for the option ``flag``."""
+    bound = f"{'>' if strict else '>='} {minimum:g}"
 
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{flag} must be a number, got {text!r}") from None
-        below = minimum is not None and (value <= minimum if strict else value < minimum)
-        if not math.isfinite(value) or below:
+        if not math.isfinite(value) or (value <= minimum if strict else value < minimum):
             raise argparse.ArgumentTypeError(f"{flag} must be {bound}, got {text}")
         return value
     return parse
 
 
-def positive_int(field: str, minimum: int = 1):
+def integer_option(field: str, minimum: int = 1):
+    """Parser of an integer >= minimum for the option ``field``."""
     def parse(text: str) -> int:
         try:
             value = int(text)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from aligngym.scenarios.commands.options import positive_int
+from aligngym.scenarios.commands.options import integer_option
 from aligngym.scenarios.registry import experiment_names
 
 
@@ -18,7 +18,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="store this run's metrics as the new baselines (default: compare)")
     reg.add_argument("--baselines", metavar="DIR",
                      help="baseline directory (default: the baselines shipped with the package)")
-    reg.add_argument("--workers", type=positive_int("--workers"), metavar="K",
+    reg.add_argument("--workers", type=integer_option("--workers"), metavar="K",
                      help="parallel processes (default: all cores)")
 
 

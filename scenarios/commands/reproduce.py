@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from aligngym.scenarios.commands.options import check_writable, positive_int, seed_option
+from aligngym.scenarios.commands.options import check_writable, integer_option, seed_option
 from aligngym.scenarios.registry import experiment_names
 
 
@@ -14,14 +14,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rpr = sub.add_parser("reproduce", help=rpr_help, description=rpr_help)
     rpr.add_argument("papers", metavar="PAPER", help="an experiment (" +
                      ", ".join(experiment_names()) + "), a comma-separated list, or all")
-    rpr.add_argument("--episodes", type=positive_int("--episodes"), metavar="N",
+    rpr.add_argument("--episodes", type=integer_option("--episodes"), metavar="N",
                      help="episodes per campaign (default: each paper's own, "
                      "Experiment.reproduce; all of them take about 3 min on 2 cores)")
     rpr.add_argument("--seed", type=seed_option, default=None, metavar="S",
                      help="campaign seed (default: each paper's own)")
     rpr.add_argument("--out", metavar="DIR", help="write DIR/claims.md (the page, with the "
                      "figures) and each campaign's outputs under DIR/PAPER/")
-    rpr.add_argument("--workers", type=positive_int("--workers"), metavar="K",
+    rpr.add_argument("--workers", type=integer_option("--workers"), metavar="K",
                      help="parallel processes (default: all cores)")
 
 
@@ -33,8 +33,8 @@ def run(args: argparse.Namespace) -> int:
     from aligngym.scenarios.reproduce import reproduce
 
     names = experiment_names()
-    papers = (list(names) if args.papers == "all"
-              else [p.strip() for p in args.papers.split(",") if p.strip()])
+    papers = (list(names) if args.papers == "all"        # each once, in the order given
+              else list(dict.fromkeys(p.strip() for p in args.papers.split(",") if p.strip())))
     unknown = [p for p in papers if p not in names]
     if unknown or not papers:
         raise ConfigError(f"reproduce: unknown paper {(unknown or [args.papers])[0]!r}; "

@@ -524,7 +524,7 @@ def plot_sensor_estimates(result: CampaignResult, out) -> list:
     of the odometer scale error (ppm), the mounting pitch and heading (deg) and the gyro
     drifts (deg/h) with their +-3 sigma bounds, against the truth (dashed black); each
     panel zoomed on the tightest filter's final band."""
-    from aligngym.scenarios.figures import pyplot
+    from aligngym.scenarios.figures import DPI, PNG_OPTIONS, pyplot
     plt = pyplot()
     from aligngym.models.units import deg_per_h
 
@@ -569,7 +569,7 @@ def plot_sensor_estimates(result: CampaignResult, out) -> list:
                  "dashed: truth)")
     fig.tight_layout()
     path = out / "sensor_estimates.png"
-    save_figure(fig, path, dpi=100)
+    save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return [path]
 

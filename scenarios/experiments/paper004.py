@@ -540,7 +540,7 @@ def format_tables(result: CampaignResult) -> str:
 def consistency_plot(result: CampaignResult, out) -> list:
     """consistency.png: per filter, the RMS heading error over the episodes against the
     filter's mean 3 sigma, in time."""
-    from aligngym.scenarios.figures import pyplot
+    from aligngym.scenarios.figures import DPI, PNG_OPTIONS, pyplot
     plt = pyplot()
 
     fig, axes = plt.subplots(len(result.runs), 1, figsize=(8, 2.2 * len(result.runs)),
@@ -559,7 +559,7 @@ def consistency_plot(result: CampaignResult, out) -> list:
     fig.suptitle(f"Paper 004, {result.experiment.case}: heading error vs the filter's 3 sigma")
     fig.tight_layout()
     path = out / "consistency.png"
-    save_figure(fig, path, dpi=100)
+    save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return [path]
 
