@@ -23,7 +23,8 @@ import numpy as np
 from aligngym.estimators.metrics import STATUSES
 from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.figures import FIGURE_CAPTIONS, as_percent, figure_caption
+from aligngym.scenarios.figure_statistics import as_percent
+from aligngym.scenarios.figures import FIGURE_CAPTIONS, figure_caption
 
 REQUIRED = ("settings.json", "results.csv", "tables.txt")
 """Files of a campaign directory the report reads (``write_outputs`` writes them)."""
@@ -415,7 +416,7 @@ def _csv_table(path: Path) -> str:
 
 def _nees_band(summary: dict) -> str:
     """A table, per filter and start, of the mean NEES against its band, from
-    summary.json's "nees_band" (``figures.nees_band_summary``; '' without one)."""
+    summary.json's "nees_band" (``figure_statistics.nees_band_summary``; '' without one)."""
     bands = summary.get("nees_band") or {}
     percent = lambda v: "-" if v is None else as_percent(v)  # noqa: E731
     head = ["filter", "start", "band", "above", "below", "first outside (s)", "in words"]

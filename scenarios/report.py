@@ -14,7 +14,8 @@ import numpy as np
 from aligngym.models.units import arcmin
 from aligngym.scenarios.atomic import atomic_path, write_json, write_text
 from aligngym.scenarios.campaign import AXES, CampaignResult, episode_metrics
-from aligngym.scenarios.figures import FigureDrawing, figure_jobs, nees_band_summary
+from aligngym.scenarios.figure_statistics import nees_band_summary
+from aligngym.scenarios.figures import FigureDrawing, figure_jobs
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]

@@ -16,8 +16,9 @@ from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign import run_campaign
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.experiments import experiment
-from aligngym.scenarios.figures import (error_bands, heading_convergence_cdfs, mean_nees_band,
-                               median_nees_band, nees_curves)
+from aligngym.scenarios.figure_statistics import (error_bands, heading_convergence_cdfs,
+                                                  mean_nees_band, median_nees_band,
+                                                  nees_curves)
 from aligngym.scenarios.html_report import render_report
 from aligngym.scenarios.report import format_tables, write_outputs
 
@@ -233,7 +234,7 @@ def test_the_bands_are_scipy_stats_numbers_without_importing_it():
     dofs = np.array([1, 2, 3, 6])
     np.testing.assert_array_equal(chi2_quantile(0.999, dofs), chi2.ppf(0.999, dofs))
     code = ("import sys, numpy as np\n"
-            "from aligngym.scenarios.figures import mean_nees_band, median_nees_band\n"
+            "from aligngym.scenarios.figure_statistics import mean_nees_band, median_nees_band\n"
             "from aligngym.estimators.adaptation import AdaptationContext, SingleFadingFactor\n"
             "mean_nees_band(3, 10); median_nees_band(3, 10)\n"
             "p = SingleFadingFactor(outlier_probability=0.999); p.reset(1)\n"
