@@ -238,6 +238,13 @@ EQUIVALENT.update({
         "Gauss-Hermite points of orders <= 13 differ by far more than 1e-12: rounding "
         "to 12 or 13 digits merges the same points",
 })
+_STACK = "C_p_n of a (B, K, 3) state is a (B, K, 3, 3) stack: axis 2 is axis -2"
+EQUIVALENT.update({
+    "scenarios/experiments/paper002.py:190: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, +2) @ "
+    "result.C_s_n": _STACK,
+    "scenarios/experiments/paper002.py:190: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, 2) @ "
+    "result.C_s_n": _STACK,
+})
 EQUIVALENT_PATTERNS: list[tuple[str, str]] = [
     (r"^estimators/rules\.py:(78|138|186|187): .*(float|np\.ndarray) "
      r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) (np\.ndarray|None)",

@@ -175,3 +175,49 @@ def test_the_attitude_estimate_in_the_state_and_in_the_attitude_are_one(probe):
     unfed[..., list(indices)] = 3.0 * np.sqrt(variances[list(indices)])
     np.testing.assert_allclose(exp.nees(replace(fine, x=unfed), episodes, error_n),
                                exp.nees(flat, episodes, error_n), rtol=1e-2)
+
+
+def test_paper001_the_ins_error_enters_as_the_state_does(probe):
+    """Paper 001's position, velocity and attitude states are the INS's own errors (in e):
+    an INS moved from where it was by dr (m, E N U) and dv (m/s), an attitude error
+    moved by dphi (rad, E N U), and the state moved by the same amounts in e, leave the
+    state errors unchanged; the INS moved alone changes them by exactly -dr, -dv, -dphi.
+    (Sign flips and wrong operators at the INS's errors, which the second differences
+    above cannot see: they move every NEES by a constant.)"""
+    exp = probe[0]
+    if exp.paper != "001":
+        pytest.skip("paper 001's map of the INS's errors")
+    from aligngym.estimators.loose_gps import PHI, POSITION, VELOCITY
+    from aligngym.models.earth import C_n_e, radii
+    from aligngym.scenarios.experiments.paper001 import state_errors
+    _, fine, episodes, error_n, _ = probe
+    s = fine.series
+    d_enu, d_v, d_phi = np.array([3.0, -2.0, 1.5]), np.array([0.2, -0.1, 0.05]), \
+        np.array([1e-4, -2e-4, 5e-4])
+    R_M, R_N = radii(s["lat"])
+    series = {**s, "lat": s["lat"] + d_enu[1] / (R_M + s["h"]),
+              "lon": s["lon"] + d_enu[0] / ((R_N + s["h"]) * np.cos(s["lat"])),
+              "h": s["h"] + d_enu[2], "v_n": s["v_n"] + d_v}
+    C = C_n_e(s["lat"], s["lon"])
+    x = fine.x.copy()
+    x[..., POSITION] += np.einsum("bkij,j->bki", C, d_enu)
+    x[..., VELOCITY] += np.einsum("bkij,j->bki", C, d_v)
+    x[..., PHI] += np.einsum("bkij,j->bki", C, d_phi)
+    base = state_errors(fine, episodes, error_n)
+    both = state_errors(replace(fine, series=series, x=x), episodes, error_n + d_phi)
+    np.testing.assert_allclose(both[..., :9], base[..., :9], atol=2e-3)
+    moved_position = {**s, **{k: series[k] for k in ("lat", "lon", "h")}}
+    alone = state_errors(replace(fine, series=moved_position), episodes, error_n) - base
+    np.testing.assert_allclose(np.einsum("bkji,bkj->bki", C, alone[..., POSITION]),
+                               np.broadcast_to(-d_enu, alone[..., POSITION].shape), atol=2e-3)
+    alone = state_errors(replace(fine, series={**s, "v_n": series["v_n"]}), episodes,
+                         error_n) - base
+    np.testing.assert_allclose(np.einsum("bkji,bkj->bki", C, alone[..., VELOCITY]),
+                               np.broadcast_to(-d_v, alone[..., VELOCITY].shape), atol=1e-12)
+    alone = state_errors(fine, episodes, error_n + d_phi) - base
+    np.testing.assert_allclose(np.einsum("bkji,bkj->bki", C, alone[..., PHI]),
+                               np.broadcast_to(-d_phi, alone[..., PHI].shape), atol=1e-15)
+    faster = [replace(e, true_v_n=e.true_v_n + d_v) for e in episodes]   # the truth moved
+    alone = state_errors(fine, faster, error_n) - base
+    np.testing.assert_allclose(np.einsum("bkji,bkj->bki", C, alone[..., VELOCITY]),
+                               np.broadcast_to(d_v, alone[..., VELOCITY].shape), atol=1e-12)
