@@ -221,3 +221,24 @@ def test_paper001_the_ins_error_enters_as_the_state_does(probe):
     alone = state_errors(fine, faster, error_n) - base
     np.testing.assert_allclose(np.einsum("bkji,bkj->bki", C, alone[..., VELOCITY]),
                                np.broadcast_to(d_v, alone[..., VELOCITY].shape), atol=1e-12)
+
+
+def test_paper003_hull_bias_nees_is_about_the_unmodelled_floor():
+    """Paper 003's setup with biases fixed in the hull frame: the NEES is the attitude's
+    alone, about the static floor those biases set (``unmodelled_floor``). An attitude
+    error on the floor has NEES 0; moved from it by d, with an isotropic covariance v,
+    |d|^2 / v whatever the rotation into the filter's frame (a closed form)."""
+    exp = experiment("paper003", "paper", fine_duration=20.0)
+    assert exp.nees_dof() == 3
+    result = run_campaign(exp, episodes=2, seed=0, filters=["kf"], workers=1, progress=False)
+    fine, episodes = result.runs[0].result, result.episodes
+    floor = exp.unmodelled_floor(episodes)
+    assert floor.shape == (2, 3) and np.all(np.abs(floor) > 0)
+    K = fine.t.size
+    on_floor = np.broadcast_to(floor[:, None], (2, K, 3)).copy()
+    v = 1e-8
+    P = np.broadcast_to(v * np.eye(fine.P.shape[-1]), fine.P.shape).copy()
+    fine = replace(fine, P=P)
+    np.testing.assert_allclose(exp.nees(fine, episodes, on_floor), 0.0, atol=1e-18)
+    d = np.array([2e-4, -1e-4, 3e-4])
+    np.testing.assert_allclose(exp.nees(fine, episodes, on_floor + d), d @ d / v, rtol=1e-9)
