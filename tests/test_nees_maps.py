@@ -242,3 +242,25 @@ def test_paper003_hull_bias_nees_is_about_the_unmodelled_floor():
     np.testing.assert_allclose(exp.nees(fine, episodes, on_floor), 0.0, atol=1e-18)
     d = np.array([2e-4, -1e-4, 3e-4])
     np.testing.assert_allclose(exp.nees(fine, episodes, on_floor + d), d @ d / v, rtol=1e-9)
+
+
+def test_paper004_attitude_state_error_is_estimate_minus_truth(probe):
+    """Paper 004's state errors begin with the attitude estimate minus the truth, as a
+    rotation vector: an estimate turned by -d from the truth (C_est = exp([-d x]) C_true)
+    has the error log(C_est C_true^T) = -d, through the error the engine hands in
+    (``metrics.misalignment``). (The sign, which a diagonal covariance cannot see.)"""
+    exp = probe[0]
+    if exp.paper != "004":
+        pytest.skip("paper 004's map of the attitude error")
+    from aligngym.estimators.metrics import misalignment
+    from aligngym.models.attitude import dcm_to_rotvec, rotvec_to_dcm
+    from aligngym.scenarios.experiments.paper004 import state_errors
+    _, fine, episodes, _, _ = probe
+    C_true = fine.C_s_n
+    d = np.array([3e-3, -2e-3, 5e-3])
+    C_est = rotvec_to_dcm(-d) @ C_true
+    expected = dcm_to_rotvec(C_est @ np.swapaxes(C_true, -1, -2))     # the definition
+    np.testing.assert_allclose(expected, np.broadcast_to(-d, expected.shape), atol=1e-15)
+    error_n = misalignment(C_true, C_est)
+    np.testing.assert_allclose(state_errors(fine, episodes, error_n)[..., :3], expected,
+                               atol=1e-12)
