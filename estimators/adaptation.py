@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.linalg import solve_each
+from aligngym.estimators.linalg import identity_where_not, solve_each
 from aligngym.estimators.metrics import chi2_quantile
 
 FACTOR_AXES = ("measurement", "local-level")
@@ -239,8 +239,7 @@ class SingleFadingFactor(InnovationFading):
         outlier_run-th such epoch in a row: a sensor's outlier, not a change of state (a
         longer run is the state's, and fades P as usual)."""
         e = np.where(valid, ctx.innovation, 0.0)
-        S = np.where(valid[:, :, None] & valid[:, None, :], ctx.S,
-                     np.eye(e.shape[-1])[None])
+        S = identity_where_not(valid[:, :, None] & valid[:, None, :], ctx.S)
         x, solved = solve_each(S, e[..., None])   # a singular S: its filter flags it
         nis = np.einsum("bi,bi->b", e, x[..., 0])
         dof = np.maximum(valid.sum(-1), 1)

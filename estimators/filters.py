@@ -15,7 +15,8 @@ import numpy as np
 
 from aligngym.estimators.adaptation import (AdaptationContext, AdaptationPolicy, Adjustment,
                                             PolicyTuning)
-from aligngym.estimators.linalg import floor_eigenvalues, positive_definite, solve_each
+from aligngym.estimators.linalg import (floor_eigenvalues, identity_where_not,
+                                        positive_definite, solve_each)
 from aligngym.estimators.model import Observation, Transition, wrap_angle
 from aligngym.estimators.rules import IntegrationRule, symmetric
 
@@ -85,13 +86,10 @@ def normalised_innovation_squared(innovation: np.ndarray, S: np.ndarray, valid: 
                                   live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """e^T S^-1 e over the valid components (B,) and their count (B,): NaN where none is
     valid, where the episode is not live, or where S is singular."""
-    eye = np.eye(innovation.shape[-1])
     used = live[:, None] & valid
     e = np.where(used, innovation, 0.0)
-    if not used.all():                  # every component of every episode: S as it is
-        S = np.where(used[:, :, None] & used[:, None, :], S, eye)
-    if not np.isfinite(S).all():
-        S = np.where(np.isfinite(S), S, eye)
+    S = identity_where_not(used[:, :, None] & used[:, None, :], S)
+    S = identity_where_not(np.isfinite(S), S)
     nis = np.einsum("bi,bi->b", e, solve_each(S, e[..., None])[0][..., 0])
     dof = valid.sum(-1)
     return np.where((dof > 0) & live, nis, np.nan), dof
@@ -155,7 +153,7 @@ class GaussianFilter:
         if live.all():
             return x, P
         return (np.where(live[:, None], x, 0.0),
-                np.where(live[:, None, None], P, np.eye(P.shape[-1])))
+                identity_where_not(live[:, None, None], P))
 
     def update(self, observation: Observation, tuning: PolicyTuning | None = None
                ) -> UpdateReport:
@@ -245,8 +243,7 @@ class GaussianFilter:
         any_missing = bool(missing.any())
         if any_missing:
             cross_valid = valid[:, :, None] & valid[:, None, :]
-            eye = np.broadcast_to(np.eye(R.shape[-1]), R.shape)
-            R = np.where(cross_valid, R, eye)
+            R = identity_where_not(cross_valid, R)
         if observation.linear:
             H = observation.matrix
             if any_missing:
@@ -264,7 +261,7 @@ class GaussianFilter:
         self.health.flag(~positive_definite(S), t, "innovation covariance not positive "
                          "definite")
         live = self.live
-        S_safe = S if live.all() else np.where(live[:, None, None], S, np.eye(S.shape[-1]))
+        S_safe = identity_where_not(live[:, None, None], S)
         S_inv_HP, solved = solve_each(S_safe, HP)
         if not solved.all():               # an episode's S singular to working precision
             self.health.flag(~solved, t, "innovation covariance singular")

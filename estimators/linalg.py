@@ -6,11 +6,17 @@ from __future__ import annotations
 import numpy as np
 
 
+def identity_where_not(keep: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """A (..., n, n) with the identity's entries where keep (broadcast to A) is False; A
+    itself, not a copy, where keep is True throughout (the usual case: no masking)."""
+    return A if keep.all() else np.where(keep, A, np.eye(A.shape[-1]))
+
+
 def positive_definite(A: np.ndarray) -> np.ndarray:
     """(B,) True where A[b] is finite and positive definite."""
     ok = np.all(np.isfinite(A), axis=(-2, -1))
     try:
-        np.linalg.cholesky(A if ok.all() else np.where(ok[:, None, None], A, np.eye(A.shape[-1])))
+        np.linalg.cholesky(identity_where_not(ok[:, None, None], A))
         return ok
     except np.linalg.LinAlgError:
         for b in np.flatnonzero(ok):
