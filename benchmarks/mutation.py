@@ -62,30 +62,23 @@ EXCLUDED_OPERATORS = [r"core/ReplaceBinaryOperator_(Add|Sub|Mul|Div|FloorDiv|Mod
 SQUARE = ("A and P are (B, n, n) batches of square matrices: shape[-1], shape[1], "
           "shape[-2] and shape[+1] are all n")
 EQUIVALENT: dict[str, str] = {
-    "estimators/linalg.py:13: np.linalg.cholesky(A if ok.all() else np.where(ok[:, None, "
-    "None], A, np.eye(A.shape[+1])))": SQUARE,
-    "estimators/linalg.py:13: np.linalg.cholesky(A if ok.all() else np.where(ok[:, None, "
-    "None], A, np.eye(A.shape[~1])))": SQUARE,
-    "estimators/linalg.py:13: np.linalg.cholesky(A if ok.all() else np.where(ok[:, None, "
-    "None], A, np.eye(A.shape[1])))": SQUARE,
-    "estimators/linalg.py:13: np.linalg.cholesky(A if ok.all() else np.where(ok[:, None, "
-    "None], A, np.eye(A.shape[- 2])))": SQUARE,
-    "estimators/linalg.py:13: np.linalg.cholesky(A if not ok.all() else np.where(ok[:, None, "
-    "None], A, np.eye(A.shape[-1])))": (
-        "the masking only spares the batched Cholesky a non-finite member: with every member "
-        "finite it returns A itself, and with one non-finite the unmasked Cholesky either "
-        "returns NaN for it (and raises for a finite member that is not positive definite, "
-        "which the member-by-member check then finds) or raises, and the check runs member "
-        "by member on the finite ones alone: the same flags either way"),
-    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "estimators/linalg.py:12: return A if keep.all() else np.where(keep, A, "
+    "np.eye(A.shape[+1]))": SQUARE,
+    "estimators/linalg.py:12: return A if keep.all() else np.where(keep, A, "
+    "np.eye(A.shape[~1]))": SQUARE,
+    "estimators/linalg.py:12: return A if keep.all() else np.where(keep, A, "
+    "np.eye(A.shape[1]))": SQUARE,
+    "estimators/linalg.py:12: return A if keep.all() else np.where(keep, A, "
+    "np.eye(A.shape[- 2]))": SQUARE,
+    "estimators/linalg.py:33: floor = relative * np.maximum(np.trace(P, axis1=-2, "
     "axis2=-1), 0.0) / P.shape[+1]": SQUARE,
-    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "estimators/linalg.py:33: floor = relative * np.maximum(np.trace(P, axis1=-2, "
     "axis2=-1), 0.0) / P.shape[~1]": SQUARE,
-    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "estimators/linalg.py:33: floor = relative * np.maximum(np.trace(P, axis1=-2, "
     "axis2=-1), 0.0) / P.shape[1]": SQUARE,
-    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "estimators/linalg.py:33: floor = relative * np.maximum(np.trace(P, axis1=-2, "
     "axis2=-1), 0.0) / P.shape[- 2]": SQUARE,
-    "estimators/linalg.py:27: floor = relative * np.maximum(np.trace(P, axis1=-2, "
+    "estimators/linalg.py:33: floor = relative * np.maximum(np.trace(P, axis1=-2, "
     "axis2=-1), -1.0) / P.shape[-1]": "a trace in (-1, 0) makes the floor negative, "
     "and the next line raises any floor below 1e-300 to 1e-300, as for a trace of 0",
 }

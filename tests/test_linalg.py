@@ -4,7 +4,8 @@ bad member in the batch that must not change the others."""
 import numpy as np
 import pytest
 
-from aligngym.estimators.linalg import floor_eigenvalues, positive_definite, solve_each
+from aligngym.estimators.linalg import (floor_eigenvalues, identity_where_not, positive_definite,
+                                        solve_each)
 
 
 def _with_eigenvalues(values, seed=0):
@@ -58,3 +59,19 @@ def test_solve_each_solves_and_marks_the_singular_member():
     assert np.all(np.isnan(X[1]))
     for b in (0, 2):
         np.testing.assert_allclose(X[b], np.linalg.solve(A[b], B[b]), rtol=1e-12)
+
+
+def test_identity_where_not_puts_the_identity_where_masked():
+    """The masked entries are the identity's (1 on the diagonal, 0 off it), the others A's;
+    with nothing masked, A itself comes back (no copy)."""
+    A = np.arange(2 * 3 * 3, dtype=float).reshape(2, 3, 3) + 10.0
+    keep = np.array([True, False])[:, None, None]
+    out = identity_where_not(keep, A)
+    np.testing.assert_array_equal(out[0], A[0])
+    np.testing.assert_array_equal(out[1], np.eye(3))
+    cross = np.array([True, False, True])
+    out = identity_where_not(cross[:, None] & cross[None, :], A)
+    np.testing.assert_array_equal(out[:, 1, 1], [1.0, 1.0])
+    np.testing.assert_array_equal(out[:, 0, 1], [0.0, 0.0])
+    np.testing.assert_array_equal(out[:, 0, 2], A[:, 0, 2])
+    assert identity_where_not(np.ones((2, 1, 1), bool), A) is A
