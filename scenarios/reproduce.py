@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -54,11 +55,11 @@ def run_claims(plan: list[ClaimCampaign], out_dir: Path | None = None,
     from aligngym.scenarios.report import write_outputs
 
     verdicts = []
-    of_paper = {c.paper: sum(d.paper == c.paper for d in plan) for c in plan}
-    number: dict[str, int] = {}
+    of_paper = Counter(c.paper for c in plan)
+    number: Counter[str] = Counter()
     for campaign in plan:
         paper, spec = campaign.paper, campaign.spec
-        number[paper] = number.get(paper, 0) + 1
+        number[paper] += 1
         first = campaign.claims[0]
         start = time.perf_counter()
         result = spec.run(workers=workers, progress=False)
