@@ -20,11 +20,11 @@ def main() -> None:
         episode = simulate(config, seed=1)
         wall = time.perf_counter() - start
         line = f"{name}: 600 s in {wall:.1f} s wall = {600 / wall:.0f}x real time"
-        if "odo_distance" in episode.extra:
+        if "odometer" in episode.measurements:
             speed = np.linalg.norm(episode.truth.v_n[:, :2], axis=1)
             path = np.sum(0.5 * (speed[1:] + speed[:-1]) * np.diff(episode.truth.t))
-            scale = episode.extra["odo_distance"][-1] / path - 1.0
-            dk = float(episode.extra["odo_scale_error"])
+            scale = episode.measurements["odometer"].distance[-1] / path - 1.0
+            dk = float(episode.measurements["odometer"].scale_error)
             line += (f"; odometer effective scale {scale * 1e3:+.2f} ppt (configured dK_D "
                      f"{dk * 1e3:+.2f} ppt, tyre slip/radius {(scale - dk) * 1e3:+.2f} ppt)")
         print(line)

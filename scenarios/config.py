@@ -22,6 +22,7 @@ from aligngym.sensors.faults import ImuFaults
 from aligngym.sensors.gps import GPS_PRESETS, GpsSpec
 from aligngym.sensors.imu import IMU_PRESETS, ImuSpec
 from aligngym.sensors.odometer import ODOMETER_PRESETS, OdometerSpec
+from aligngym.sensors.suite import SensorSuite, sensor_types
 
 BIAS_FRAMES = ("sensor", "hull")
 WORLDS = ("car", "ship-prescribed", "ship-waves", "static-platform")
@@ -94,19 +95,21 @@ class ConfigError(ValueError):
     """An invalid scenario or option; the message names the field and the allowed range."""
 
 
-def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
+def _to_si(table: dict[str, Any], section: str, units: dict[str, str] = UNITS
+           ) -> dict[str, Any]:
     """Strip unit suffixes from keys and convert their values to SI; a known parameter
-    must carry its own unit suffix (``UNITS``), numbers must be finite and not booleans."""
+    must carry its own unit suffix (units: ``UNITS``, or a registered sensor's), numbers
+    must be finite and not booleans."""
     out: dict[str, Any] = {}
     for key, value in table.items():
         name, factor, written = key, 1.0, ""
         for suffix, scale in _UNIT_SUFFIXES:
-            if key.endswith(suffix) and key[: -len(suffix)] in UNITS:
+            if key.endswith(suffix) and key[: -len(suffix)] in units:
                 name, factor, written = key[: -len(suffix)], scale, suffix
                 break
-        if name in UNITS and UNITS[name] != written and not (
+        if name in units and units[name] != written and not (
                 written == "" and isinstance(value, str)):   # e.g. linear_phase = "random"
-            unit = UNITS[name]
+            unit = units[name]
             raise ConfigError(
                 f"{section}.{key}: {name} "
                 + (f"is in {_UNIT_NAMES[unit]}; write {name}{unit}" if unit else
@@ -117,7 +120,8 @@ def _to_si(table: dict[str, Any], section: str) -> dict[str, Any]:
             out[name] = _scale(value, factor) if written else _checked(value)
         except (TypeError, ValueError, OverflowError) as exc:
             raise ConfigError(f"{section}.{key}: {exc}") from None
-        _check_kind(f"{section}.{key}", name, out[name])
+        if units is UNITS:
+            _check_kind(f"{section}.{key}", name, out[name])
     return out
 
 
@@ -266,6 +270,9 @@ class ScenarioConfig:
     """The [filter] table (SI, unit suffixes stripped): tuning overrides that the
     scenario's experiment validates (e.g. paper 002's initial_covariance)."""
     faults: ImuFaults = ImuFaults()
+    sensors: tuple[tuple[str, Any], ...] = ()
+    """The registered sensors without a field of their own (``sensors.base``), as
+    (section, spec) pairs in the file's order: a [dvl] table, a user's sensor."""
     experiment: str = ""
     """The pipeline that runs on this scenario (the file's ``experiment`` key, e.g.
     "paper003"; "" for none): the only map from a scenario to its experiment."""
@@ -284,6 +291,21 @@ class ScenarioConfig:
         config = ScenarioConfig(**values)
         config.validate(labels)
         return config
+
+    def sensor_specs(self) -> dict[str, Any]:
+        """Every sensor the scenario carries besides its IMU, section -> spec: the gimbal
+        encoders always, then the odometer, the GNSS receiver and ``sensors``."""
+        specs: dict[str, Any] = {"encoder": self.encoder}
+        if self.odometer is not None:
+            specs["odometer"] = self.odometer
+        if self.gps is not None:
+            specs["gps"] = self.gps
+        specs.update(self.sensors)
+        return specs
+
+    def sensor_suite(self) -> SensorSuite:
+        """The scenario's sensors besides its IMU (``sensor_specs``), to measure with."""
+        return SensorSuite.of(self.sensor_specs())
 
     @property
     def imu_interval(self) -> float:
@@ -313,13 +335,15 @@ class ScenarioConfig:
             self.faults.check(self.duration)
         except ValueError as exc:
             raise ConfigError(_as_written(str(exc))) from None
-        for when, *_ in (self.gps.outliers if self.gps is not None else ()):
-            _check_range("gps.outliers time", when, 0.0, self.duration, "s")
-        for when, duration, _ in (self.odometer.slips if self.odometer is not None else ()):
-            _check_range("odometer.slips time", when, 0.0, self.duration - duration, "s")
-        if self.gps is not None and self.world == "static-platform":
-            raise ConfigError("[gps]: the static-platform world has no GNSS antenna; remove "
-                              "the table")
+        for sensor in self.sensor_suite().sensors:
+            if sensor.worlds and self.world not in sensor.worlds:
+                raise ConfigError(f"[{sensor.section}]: the {self.world} world cannot carry "
+                                  f"it (only {', '.join(sensor.worlds)}); remove the table")
+            try:
+                sensor.check(self.duration, self.imu_rate, self.world)
+            except ValueError as exc:
+                raise ConfigError(_written_in(str(exc), sensor.section,
+                                              sensor_units(sensor.section))) from None
         if self.gps is not None and self.world not in PHYSICS_RATE:
             ratio = self.imu_rate / self.gps.rate
             if abs(ratio - round(ratio)) > 1e-9:
@@ -381,14 +405,16 @@ def load_scenario(name_or_path: str) -> ScenarioConfig:
 
 
 def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
-    unknown = sorted(set(raw) - set(SECTIONS) - set(TOP_KEYS))
+    plugged = [name for name in sensor_types() if name not in SECTIONS]
+    tables = [*SECTIONS, *plugged]
+    unknown = sorted(set(raw) - set(tables) - set(TOP_KEYS))
     if unknown:
-        close = difflib.get_close_matches(unknown[0], [*SECTIONS, *TOP_KEYS], n=1,
+        close = difflib.get_close_matches(unknown[0], [*tables, *TOP_KEYS], n=1,
                                           cutoff=0.6)
         hint = ("" if not close else f"; did you mean [{close[0]}]?"
-                if close[0] in SECTIONS else f"; did you mean {close[0]}?")
+                if close[0] in tables else f"; did you mean {close[0]}?")
         raise ConfigError(f"{source}: {unknown[0]!r} is neither a key ("
-                          + ", ".join(TOP_KEYS) + ") nor a table ([" + "], [".join(SECTIONS)
+                          + ", ".join(TOP_KEYS) + ") nor a table ([" + "], [".join(tables)
                           + "])" + hint)
     for key in TOP_KEYS:
         if key in raw and not isinstance(raw[key], str):
@@ -448,6 +474,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
+    sensors = tuple((name, _plugged_sensor(raw, name, source)) for name in plugged
+                    if name in raw)
     filter_table = tuple(sorted(section("filter", False).items()))
     if "gimbal_stalls" in motion:
         raise ConfigError("motion.gimbal_stalls: stalls are faults; write them in [faults] "
@@ -467,7 +495,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
             imu_preset=preset, imu=imu_spec, imu_bias_frame=bias_frame,
             encoder=encoder, motion=motion_obj,
             random_linear_phase=random_phase, odometer=odometer, gps=gps,
-            filter=filter_table, faults=faults)
+            sensors=sensors, filter=filter_table, faults=faults)
     except KeyError as exc:
         raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
     config.validate()
@@ -544,18 +572,20 @@ def _experiment_key(name: str) -> str:
     return name
 
 
-def _dataclass_from(cls, values: dict[str, Any], section: str):
-    """cls(**values) with errors that name the section's field."""
+def _dataclass_from(cls, values: dict[str, Any], section: str,
+                    units: dict[str, str] = UNITS):
+    """cls(**values) with errors that name the section's field as the file writes it
+    (units: its keys' suffixes)."""
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(values) - known)
     if unknown:
-        written = unknown[0] + UNITS.get(unknown[0], "")
+        written = unknown[0] + units.get(unknown[0], "")
         raise _not_a_parameter(f"{section}.{written}", written,
-                               sorted(k + UNITS.get(k, "") for k in known))
+                               sorted(k + units.get(k, "") for k in known))
     try:
         return cls(**values)
     except (TypeError, ValueError) as exc:
-        message = _as_written(str(exc))
+        message = _written_in(str(exc), section, units)
         raise ConfigError(message if message.startswith(f"{section}.")
                           else f"{section}: {message}") from None
 
@@ -587,7 +617,8 @@ def _platform_motion(table: dict[str, Any]) -> StaticPlatformMotion:
                                    for key, value in values.items()})
 
 
-def _sensor(values: dict[str, Any], presets: dict, cls, section: str):
+def _sensor(values: dict[str, Any], presets: dict, cls, section: str,
+            units: dict[str, str] = UNITS):
     """A sensor spec from a table: a preset plus overrides; None without a table."""
     if not values:
         return None
@@ -598,4 +629,33 @@ def _sensor(values: dict[str, Any], presets: dict, cls, section: str):
     base = {f.name: getattr(presets[preset], f.name) for f in fields(cls)} if preset else {}
     if "pulses_per_rev" in values:
         values["pulses_per_rev"] = int(values["pulses_per_rev"])
-    return _dataclass_from(cls, {**base, **values}, section)
+    return _dataclass_from(cls, {**base, **values}, section, units)
+
+
+def sensor_units(section: str) -> dict[str, str]:
+    """The unit suffixes of a sensor table's keys (a registered sensor's own, else
+    ``UNITS``)."""
+    cls = sensor_types().get(section)
+    return UNITS if cls is None or section in SECTIONS else cls.units
+
+
+def _written_in(message: str, section: str, units: dict[str, str]) -> str:
+    """A message naming ``section.field`` with each such field written as the file writes
+    its key (``dvl.rate`` -> ``dvl.rate_hz``; ``_as_written`` for the file's own
+    tables)."""
+    if units is UNITS:
+        return _as_written(message)
+    return re.sub(rf"\b{section}\.([A-Za-z_][A-Za-z0-9_]*)",
+                  lambda m: f"{section}.{m.group(1)}{units.get(m.group(1), '')}", message)
+
+
+def _plugged_sensor(raw: dict[str, Any], name: str, source: str):
+    """The spec of a registered sensor's table (``sensors.base.register_sensor``): its
+    preset plus overrides, keys in its own units."""
+    cls = sensor_types()[name]
+    if not isinstance(raw[name], dict):
+        raise ConfigError(f"{source}: [{name}] must be a table")
+    values = _to_si(raw[name], name, cls.units)
+    if not values:                      # an empty table: the spec's defaults
+        return cls.spec_type()
+    return _sensor(values, cls.presets, cls.spec_type, name, cls.units)

@@ -16,6 +16,7 @@ from aligngym.models.truth import NavigationTruth, imu_truth
 from aligngym.models.world import PrescribedWorld
 from aligngym.scenarios.config import PHYSICS_RATE, ConfigError, ScenarioConfig
 from aligngym.scenarios.truth_cache import cached_arrays, remember_code
+from aligngym.sensors.base import FaultLog, SensorRecord, SensorTruth
 from aligngym.sensors.imu import ImuRealization, apply_imu_errors, ideal_increments
 
 remember_code()   # the code this process simulates with labels its truth-cache entries
@@ -28,9 +29,13 @@ TRUTH_OVERSAMPLING = 2
 class Episode:
     """One simulated run. truth: at the IMU interval boundaries (M+1 samples);
     imu_t (M,) s; dtheta (M, 3) rad, dv (M, 3) m/s in the sensor frame;
-    gimbal_encoder (M+1, 2) rad; imu_realization: the drawn errors (None when ideal).
-    The truth (and the arrays taken from it, such as imu_t and extra's odo_t) may be
-    shared with other episodes of the same motion: read-only; copy it to modify it."""
+    imu_realization: the drawn errors (None when ideal); measurements: every other
+    sensor's typed record by its section ("encoder" always; "odometer", "gps", "dvl"
+    and a user's sensors where the scenario has their tables); faults: the faults
+    injected (None without any); cross_track: the car's cross-track error at the
+    boundaries, m (None for other worlds). The truth (and the arrays taken from it, such
+    as imu_t and the odometer's t) may be shared with other episodes of the same motion:
+    read-only; copy it to modify it."""
 
     config: ScenarioConfig
     seed: int
@@ -39,10 +44,15 @@ class Episode:
     imu_t: np.ndarray
     dtheta: np.ndarray
     dv: np.ndarray
-    gimbal_encoder: np.ndarray
     imu_realization: ImuRealization | None
-    extra: dict[str, np.ndarray] = field(default_factory=dict)
-    """Further sensors' arrays (odometer, GPS), in the export's names."""
+    measurements: dict[str, SensorRecord] = field(default_factory=dict)
+    faults: FaultLog | None = None
+    cross_track: np.ndarray | None = None
+
+    @property
+    def gimbal_encoder(self) -> np.ndarray:
+        """The gimbal encoders' readings (M+1, 2) rad (outer, inner)."""
+        return self.measurements["encoder"].angles
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The export arrays (README "Data files")."""
@@ -50,13 +60,15 @@ class Episode:
         out = {"t": tr.t, "lat": tr.lat, "lon": tr.lon, "h": tr.h, "v_n": tr.v_n,
                "q_b_n": tr.q_b_n, "q_s_n": tr.q_s_n, "gimbal_angles": tr.gimbal_angles,
                "imu_t": self.imu_t, "dtheta": self.dtheta, "dv": self.dv,
-               "gimbal_encoder": self.gimbal_encoder,
                "scenario": np.array(self.config.name), "seed": np.array(self.seed),
                "ideal": np.array(self.ideal)}
         if self.imu_realization is not None:
             out["gyro_bias"] = self.imu_realization.gyro.bias
             out["accel_bias"] = self.imu_realization.accel.bias
-        out.update(self.extra)
+        if self.cross_track is not None:
+            out["cross_track"] = self.cross_track
+        for record in (*self.measurements.values(), self.faults):
+            out.update(record.arrays() if record is not None else {})
         return out
 
     def save(self, path: str | Path) -> Path:
@@ -75,9 +87,25 @@ def episode_rngs(seed: int) -> dict[str, np.random.Generator]:
     """Independent random streams of one episode, so that the truth does not depend on
     whether sensor errors are drawn."""
     children = np.random.SeedSequence(seed).spawn(6)
-    return {name: np.random.default_rng(s) for name, s in
-            zip(("motion", "imu_realization", "imu_noise", "encoder", "odometer", "gps"),
-                children)}
+    return _Streams(seed, {name: np.random.default_rng(s) for name, s in
+                           zip(("motion", "imu_realization", "imu_noise", "encoder",
+                                "odometer", "gps"), children)})
+
+
+class _Streams(dict):
+    """An episode's random streams by name: the six above, and for any other name (a
+    sensor's: "dvl", a user's) a stream of its own from the seed and the name."""
+
+    def __init__(self, seed: int, streams: dict[str, np.random.Generator]) -> None:
+        super().__init__(streams)
+        self.seed = seed
+
+    def __missing__(self, name: str) -> np.random.Generator:
+        import zlib
+        stream = np.random.default_rng(np.random.SeedSequence(
+            self.seed, spawn_key=(6, zlib.crc32(name.encode()))))
+        self[name] = stream
+        return stream
 
 
 def make_world(config: ScenarioConfig, rng: np.random.Generator) -> PrescribedWorld:
@@ -186,20 +214,31 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     dtheta, dv = dtheta.copy(), dv.copy()   # the cached arrays stay as they are
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
                                           truth.gimbal_angles)
-    encoder = config.encoder
-    offsets = np.zeros(2) if ideal else encoder.draw_offsets(rngs["encoder"])
-    reading = (truth.gimbal_angles.copy() if ideal or not config.motion.has_gimbal
-               else encoder.measure(truth.gimbal_angles, offsets))
-    extra = {}
     imu_t, dtheta, dv, imu_faults = _faults(config, imu_t, dtheta, dv)
+    fixes = None
     if config.gps is not None:
         every = np.arange(0, truth.t.size, int(round(config.imu_rate / config.gps.rate)))
-        extra.update(_gps_fixes(config, rngs["gps"], ideal, truth.t[every],
-                                antenna[0][every], antenna[1][every]))
-    _fault_record(config, imu_faults, extra)
+        fixes = (truth.t[every], antenna[0][every], antenna[1][every])
+    seen = SensorTruth(truth=truth, plane=_plane(config), antenna=fixes,
+                       has_gimbal=config.motion.has_gimbal)
+    return _episode(config, seed, ideal, truth, imu_t, dtheta, dv, realization, imu_faults,
+                    seen, rngs)
+
+
+def _plane(config: ScenarioConfig) -> TangentPlane:
+    return TangentPlane(config.latitude, config.longitude, config.height)
+
+
+def _episode(config, seed, ideal, truth, imu_t, dtheta, dv, realization, imu_faults,
+             seen: SensorTruth, rngs, cross_track=None) -> Episode:
+    """The episode, its sensors measured (``sensors.suite``) and its faults recorded."""
+    suite = config.sensor_suite()
+    records = suite.measure(seen, rngs.__getitem__, ideal)
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
-                   dtheta=dtheta, dv=dv, gimbal_encoder=reading, imu_realization=realization,
-                   extra=extra)
+                   dtheta=dtheta, dv=dv, imu_realization=realization, measurements=records,
+                   faults=_fault_log(config, imu_faults, suite.faults(records,
+                                                                      config.duration)),
+                   cross_track=cross_track)
 
 
 def imu_rails(config: ScenarioConfig) -> tuple[float, float]:
@@ -221,46 +260,21 @@ def _faults(config: ScenarioConfig, imu_t, dtheta, dv):
                                        record["fault_end"]))
 
 
-def _fault_record(config: ScenarioConfig, imu_rows: list, extra: dict) -> None:
-    """The record of every fault, added to extra (fault_kind, fault_start, fault_end (F,)
-    when there is any): the IMU faults' rows, the gimbal stalls (to the end of their
-    catch-up), the GNSS outages and outliers (at the stamp of the fix each is put on:
-    extra's fixes) and the odometer slips."""
+def _fault_log(config: ScenarioConfig, imu_rows: list, sensor_rows: list
+               ) -> FaultLog | None:
+    """The record of every fault (None without any): the IMU faults' rows, the gimbal
+    stalls (to the end of their catch-up), then the sensors' (GNSS outages and outliers
+    at the stamp of the fix each is put on, odometer slips, DVL dropouts)."""
     from aligngym.models.world import STALL_CATCH_UP
     rows = list(imu_rows)
     rows += [("gimbal_stall", start, start + (1.0 + STALL_CATCH_UP) * duration)
              for start, duration in config.faults.gimbal_stalls]
-    if config.gps is not None:
-        from aligngym.sensors.gps import nearest_fix
-        rows += [("gnss_outage", start, min(end, config.duration))
-                 for start, end in config.gps.outages if start < config.duration]
-        stamps = extra["gps_t"]
-        rows += [("gnss_outlier", stamps[k], stamps[k]) for k in
-                 (nearest_fix(stamps, when) for when, *_ in config.gps.outliers)]
-    if config.odometer is not None:
-        rows += [("odometer_slip", start, start + duration)
-                 for start, duration, _ in config.odometer.slips]
-    if rows:
-        kind, start, end = zip(*rows)
-        extra.update({"fault_kind": np.array(kind, dtype=str),
-                      "fault_start": np.array(start, dtype=float),
-                      "fault_end": np.array(end, dtype=float)})
-
-
-def _gps_fixes(config: ScenarioConfig, rng: np.random.Generator, ideal: bool,
-               t: np.ndarray, antenna_r_t: np.ndarray, antenna_v_t: np.ndarray
-               ) -> dict[str, np.ndarray]:
-    """The receiver's fixes (``sensors.gps.measure``; error-free when ideal) of the
-    antenna's plane position (m) and velocity (m/s), (N, 3), at the fix times t (N,) s."""
-    from aligngym.sensors import gps as gps_sensor
-
-    plane = TangentPlane(config.latitude, config.longitude, config.height)
-    lat, lon, h = plane.to_geodetic(antenna_r_t)
-    v_n = np.einsum("...ij,...j->...i", plane.C_t_n(lat, lon), antenna_v_t)
-    spec = config.gps
-    if ideal:
-        spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0, velocity_sigma=0.0)
-    return gps_sensor.measure(spec, t, lat, lon, h, v_n, rng)
+    rows += sensor_rows
+    if not rows:
+        return None
+    kind, start, end = zip(*rows)
+    return FaultLog(kind=np.array(kind, dtype=str), start=np.array(start, dtype=float),
+                    end=np.array(end, dtype=float))
 
 
 def _prescribed_truth(world: PrescribedWorld, latitude: float, longitude: float,
@@ -507,20 +521,8 @@ def _simulate_dynamic(config: ScenarioConfig, seed: int, ideal: bool) -> Episode
     truth = shared.truth
     dtheta, dv, realization = _imu_errors(config, rngs, shared.dtheta.copy(),
                                           shared.dv.copy(), ideal, truth.gimbal_angles)
-    extra = {} if shared.cross_track is None else {"cross_track": shared.cross_track}
     imu_t, dtheta, dv, imu_faults = _faults(config, truth.t[1:], dtheta, dv)
-    if config.odometer is not None:
-        odo = config.odometer
-        scale = 0.0 if ideal else odo.draw_scale_error(rngs["odometer"])
-        extra.update({"odo_t": truth.t, "odo_distance": odo.distance(
-            shared.rear_wheels, scale, truth.t), "odo_scale_error": np.array(scale),
-            "odo_mounting": np.array([odo.mounting_pitch, odo.mounting_heading])})
-    if shared.antenna is not None:
-        extra.update(_gps_fixes(config, rngs["gps"], ideal, *shared.antenna))
-    encoder = config.encoder
-    reading = (truth.gimbal_angles.copy() if ideal or not motion.has_gimbal else
-               encoder.measure(truth.gimbal_angles, encoder.draw_offsets(rngs["encoder"])))
-    _fault_record(config, imu_faults, extra)
-    return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
-                   dtheta=dtheta, dv=dv, gimbal_encoder=reading,
-                   imu_realization=realization, extra=extra)
+    seen = SensorTruth(truth=truth, plane=_plane(config), antenna=shared.antenna,
+                       rear_wheels=shared.rear_wheels, has_gimbal=motion.has_gimbal)
+    return _episode(config, seed, ideal, truth, imu_t, dtheta, dv, realization, imu_faults,
+                    seen, rngs, cross_track=shared.cross_track)

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aligngym.sensors.base import Sensor, SensorRecord, SensorTruth, register_sensor
+
 
 @dataclass(frozen=True)
 class GimbalEncoderSpec:
@@ -31,3 +33,31 @@ class GimbalEncoderSpec:
         if self.resolution > 0.0:
             reading = np.round(reading / self.resolution) * self.resolution
         return reading
+
+
+@dataclass(frozen=True)
+class EncoderAngles(SensorRecord):
+    """The gimbal encoders' readings (N+1, 2) rad (outer, inner) at the IMU interval
+    boundaries: the true angles where the IMU has no gimbal or the data are ideal."""
+
+    NAMES = {"angles": "gimbal_encoder"}
+    angles: np.ndarray
+
+
+@register_sensor
+class GimbalEncoders(Sensor):
+    """The gimbal's angle encoders ([encoder]; every scenario has them, with the default
+    20-bit spec when the file has no table)."""
+
+    section = "encoder"
+    spec_type = GimbalEncoderSpec
+    units = {"resolution": "_arcsec", "offset_sigma": "_arcsec"}
+    stream = "encoder"
+    always = True
+
+    def measure(self, truth: SensorTruth, rng: np.random.Generator, ideal: bool
+                ) -> EncoderAngles:
+        angles = truth.truth.gimbal_angles
+        if ideal or not truth.has_gimbal:
+            return EncoderAngles(angles.copy())
+        return EncoderAngles(self.spec.measure(angles, self.spec.draw_offsets(rng)))

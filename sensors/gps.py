@@ -3,11 +3,12 @@ and the single-antenna heading from the velocity with its sigma (001 eqs. 1-4)."
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from aligngym.sensors import number_rows
+from aligngym.sensors.base import Sensor, SensorRecord, SensorTruth, register_sensor
 
 
 @dataclass(frozen=True)
@@ -104,3 +105,62 @@ GPS_PRESETS = {
 }
 """001: RTK, cm / cm/s (values within that level assumed); 004: 2.5 m, 0.05 m/s
 (vertical 5 m assumed)."""
+
+
+@dataclass(frozen=True)
+class GnssFixes(SensorRecord):
+    """The receiver's fixes (G,): stamps t s; antenna lat, lon rad, h m; v_n (G, 3) m/s
+    ENU; the velocity's heading and its sigma, rad; valid (False inside an outage, where
+    the values are NaN) and heading_valid (valid and fast enough)."""
+
+    PREFIX = "gps_"
+    t: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    v_n: np.ndarray
+    heading: np.ndarray
+    heading_sigma: np.ndarray
+    valid: np.ndarray
+    heading_valid: np.ndarray
+
+
+@register_sensor
+class GnssReceiver(Sensor):
+    """A single-antenna GNSS receiver ([gps]) at the carrier's antenna."""
+
+    section = "gps"
+    spec_type = GpsSpec
+    units = {"rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
+             "velocity_sigma": "", "heading_min_speed": "", "latency": "_s",
+             "outages": "_s", "outliers": ""}
+    presets = GPS_PRESETS
+    worlds = ("car", "ship-prescribed", "ship-waves")
+    stream = "gps"
+
+    def check(self, duration: float, imu_rate: float, world: str) -> None:
+        for when, *_ in self.spec.outliers:
+            if not 0.0 <= when <= duration:
+                raise ValueError(f"gps.outliers time = {when:g} s is out of range "
+                                 f"[0, {duration:g}]")
+
+    def measure(self, truth: SensorTruth, rng: np.random.Generator, ideal: bool
+                ) -> GnssFixes:
+        t, r_t, v_t = truth.antenna
+        plane = truth.plane
+        lat, lon, h = plane.to_geodetic(r_t)
+        v_n = np.einsum("...ij,...j->...i", plane.C_t_n(lat, lon), v_t)
+        spec = self.spec
+        if ideal:
+            spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
+                           velocity_sigma=0.0)
+        fixes = measure(spec, t, lat, lon, h, v_n, rng)
+        return GnssFixes(**{name.removeprefix("gps_"): value
+                            for name, value in fixes.items()})
+
+    def faults(self, record: SensorRecord, duration: float
+               ) -> list[tuple[str, float, float]]:
+        rows = [("gnss_outage", start, min(end, duration))
+                for start, end in self.spec.outages if start < duration]
+        return rows + [("gnss_outlier", record.t[k], record.t[k]) for k in
+                       (nearest_fix(record.t, when) for when, *_ in self.spec.outliers)]

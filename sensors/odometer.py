@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.sensors import number_rows
+from aligngym.sensors.base import Sensor, SensorRecord, SensorTruth, register_sensor
 
 
 @dataclass(frozen=True)
@@ -73,3 +74,49 @@ ODOMETER_PRESETS = {
     # 000: scale-factor error, encoder quantization, mounting pitch/heading (values assumed).
     "paper000": OdometerSpec(),
 }
+
+
+@dataclass(frozen=True)
+class OdometerDistance(SensorRecord):
+    """The odometer's cumulative distance (N+1,) m at the times t (N+1,) s (the IMU
+    interval boundaries), the episode's scale-factor error dK_D and the IMU case's
+    mounting (pitch, heading) rad on the chassis."""
+
+    PREFIX = "odo_"
+    t: np.ndarray
+    distance: np.ndarray
+    scale_error: np.ndarray
+    mounting: np.ndarray
+
+
+@register_sensor
+class WheelOdometer(Sensor):
+    """The car's wheel odometer ([odometer]): the driven wheels' encoder pulses."""
+
+    section = "odometer"
+    spec_type = OdometerSpec
+    units = {"pulses_per_rev": "", "nominal_radius": "_m", "scale_error": "",
+             "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
+             "slips": ""}
+    presets = ODOMETER_PRESETS
+    worlds = ("car",)
+    stream = "odometer"
+
+    def check(self, duration: float, imu_rate: float, world: str) -> None:
+        for when, burst, _ in self.spec.slips:
+            if not 0.0 <= when <= duration - burst:
+                raise ValueError(f"odometer.slips time = {when:g} s is out of range "
+                                 f"[0, {duration - burst:g}]")
+
+    def measure(self, truth: SensorTruth, rng: np.random.Generator, ideal: bool
+                ) -> OdometerDistance:
+        odo, t = self.spec, truth.truth.t
+        scale = 0.0 if ideal else odo.draw_scale_error(rng)
+        return OdometerDistance(
+            t=t, distance=odo.distance(truth.rear_wheels, scale, t),
+            scale_error=np.array(scale),
+            mounting=np.array([odo.mounting_pitch, odo.mounting_heading]))
+
+    def faults(self, record: SensorRecord, duration: float
+               ) -> list[tuple[str, float, float]]:
+        return [("odometer_slip", start, start + burst) for start, burst, _ in self.spec.slips]

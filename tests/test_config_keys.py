@@ -48,7 +48,7 @@ def edited(name: str, old: str, new: str, tmp_path) -> str:
      "gps.preset = 'rkt' is unknown; did you mean 'rtk'?"),
     ("ship-sway-rotary", r"\Z", "\n[gpss]\nrate_hz = 1.0\n",
      "'gpss' is neither a key (name, paper, experiment, world) nor a table ([origin], "
-     "[run], [imu], [motion], [encoder], [odometer], [gps], [filter], [indexer], [faults])"
+     "[run], [imu], [motion], [encoder], [odometer], [gps], [filter], [indexer], [faults], [dvl])"
      "; did you mean [gps]?"),
     ("ship-sway-rotary", r"^\[origin\]\n", "[origin]\nimu_rate_hz = 100.0\n",
      "origin.imu_rate_hz is not a parameter; valid: latitude_deg, longitude_deg, height_m"),

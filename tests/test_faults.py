@@ -35,7 +35,7 @@ def test_every_fault_is_flagged_at_its_time_and_repaired(tmp_path, name):
     episode, flags = simulate_screened(config, seed=3)
     from aligngym.scenarios.simulate import simulate
     raw = simulate(config, seed=3)
-    record = dict(zip(raw.extra["fault_kind"], raw.extra["fault_start"]))
+    record = dict(zip(raw.faults.kind, raw.faults.start))
     assert set(record) == {"spike", "saturation", "gap", "nan"}
     assert raw.imu_t.size == config.imu_samples - round(0.3 / dt)     # the gap's samples
     found = dict(zip(flags["fault_kind"], flags["fault_time"]))
@@ -153,7 +153,7 @@ def test_every_sensor_fault_is_flagged_at_its_time(tmp_path, name):
     path.write_text(text + table)
     config = load_scenario(str(path)).with_options(duration=duration)
     episode, flags = simulate_screened(config, seed=2)
-    record = list(zip(episode.extra["fault_kind"], episode.extra["fault_start"]))
+    record = list(zip(episode.faults.kind, episode.faults.start))
     assert sorted(record) == sorted(expected.items())
     found = list(zip(flags["fault_kind"], flags["fault_time"]))
     assert sorted(kind for kind, _ in found) == sorted(expected), found

@@ -60,7 +60,7 @@ def test_odometer_aided_alignment_while_driving(ring):
     errors, residuals = {}, {}
     for name, arm in (("lever", lever), ("none", None)):
         C, residuals[name] = odometer_aided_alignment(
-            ring.dtheta[i0:i1], ring.dv[i0:i1], dt, ring.extra["odo_distance"][i0:i1 + 1],
+            ring.dtheta[i0:i1], ring.dv[i0:i1], dt, ring.measurements["odometer"].distance[i0:i1 + 1],
             config.latitude, config.height, C_m_b, arm)
         np.testing.assert_allclose(C @ C.T, np.eye(3), atol=1e-12)
         errors[name] = np.abs(misalignment(C_true, C))
@@ -93,7 +93,7 @@ def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = Tru
         t=np.arange(seconds + 1.0), imu_dt=dt,
         dtheta=(ring.dtheta[sl] + eps * dt).reshape(1, seconds, S, 3),
         dv=(ring.dv[sl] + nabla * dt).reshape(1, seconds, S, 3),
-        distance=np.diff(ring.extra["odo_distance"])[sl].reshape(1, seconds, S),
+        distance=np.diff(ring.measurements["odometer"].distance)[sl].reshape(1, seconds, S),
         C_m_b=C_m_b[None], lever_arm_b=lever[None], q_b_n0=dcm_to_quat(C0)[None],
         v_n0=tr.v_n[i0][None], lat0=tr.lat[i0:i0 + 1], lon0=tr.lon[i0:i0 + 1],
         h0=tr.h[i0:i0 + 1])
@@ -130,7 +130,7 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
     tr = ring.truth
     motion = ring.config.motion
     lever = np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
-    counted = ring.extra["odo_distance"][i0 + 15 * S] - ring.extra["odo_distance"][i0]
+    counted = ring.measurements["odometer"].distance[i0 + 15 * S] - ring.measurements["odometer"].distance[i0]
     odo_scale = _rear_path(tr, lever, i0, i0 + 15 * S) / counted
 
     def state(k):

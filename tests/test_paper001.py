@@ -179,7 +179,8 @@ def _inputs(episode, start: float, seconds: int, gps: bool = False) -> GpsInsInp
              "gps_v_n": np.full((1, seconds + 1, 3), np.nan)}
     if gps:
         g = int(round(start)) + np.arange(seconds + 1)
-        fixes = {key: episode.extra[key][g][None] for key in fixes}
+        fixes = {key: getattr(episode.measurements["gps"], key.removeprefix("gps_"))[g][None]
+                 for key in fixes}
     motion = episode.config.motion
     return GpsInsInputs(
         t=np.arange(seconds + 1.0), imu_dt=dt, dtheta=d(episode.dtheta), dv=d(episode.dv),
@@ -494,14 +495,14 @@ def test_velocity_aided_alignment_recovers_the_attitude_in_motion(ideal_motion):
     ep, dt = ideal_motion, ideal_motion.config.imu_interval
     i0, i1 = int(round(60.0 / dt)), int(round(110.0 / dt))
     fixes = np.arange(60, 111)
-    x, motion = ep.extra, ep.config.motion
+    x, motion = ep.measurements["gps"], ep.config.motion
     lever = np.subtract(motion.gps_antenna_b, motion.imu_offset_b)
     C_true = quat_to_dcm(ep.truth.q_s_n[i1])
     errors = {}
     for name, arm in (("compensated", lever), ("ignored", None)):
         C, residual = velocity_aided_alignment(
-            ep.dtheta[i0:i1], ep.dv[i0:i1], dt, (fixes - 60.0) / dt, x["gps_lat"][fixes],
-            x["gps_h"][fixes], x["gps_v_n"][fixes], arm)
+            ep.dtheta[i0:i1], ep.dv[i0:i1], dt, (fixes - 60.0) / dt, x.lat[fixes],
+            x.h[fixes], x.v_n[fixes], arm)
         np.testing.assert_allclose(C @ C.T, np.eye(3), atol=1e-12)
         assert np.linalg.det(C) == pytest.approx(1.0)
         errors[name] = np.abs(misalignment(C_true, C)).max()

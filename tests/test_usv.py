@@ -126,7 +126,7 @@ def test_ideal_gnss_is_the_antenna_of_the_prescribed_hull(config):
     cfg = config.with_options(duration=60.0)
     episode = simulate(cfg, seed=0, ideal=True)
     m = cfg.motion
-    t = episode.extra["gps_t"]
+    t = episode.measurements["gps"].t
     assert np.allclose(np.diff(t), 1.0)
     centre, v_centre, _ = m.sway_centre(t)
     euler, _, _ = m.euler(t)
@@ -138,12 +138,12 @@ def test_ideal_gnss_is_the_antenna_of_the_prescribed_hull(config):
     plane = TangentPlane(cfg.latitude, cfg.longitude, cfg.height)
     q = np.broadcast_to([1.0, 0, 0, 0], (t.size, 4))
     expected = plane_truth(plane, t, r, v, q, q, np.zeros((t.size, 2)))
-    np.testing.assert_allclose(episode.extra["gps_lat"], expected.lat, atol=1e-12)
-    np.testing.assert_allclose(episode.extra["gps_lon"], expected.lon, atol=1e-12)
-    np.testing.assert_allclose(episode.extra["gps_h"], expected.h, atol=1e-6)
-    np.testing.assert_allclose(episode.extra["gps_v_n"], expected.v_n, atol=1e-9)
+    np.testing.assert_allclose(episode.measurements["gps"].lat, expected.lat, atol=1e-12)
+    np.testing.assert_allclose(episode.measurements["gps"].lon, expected.lon, atol=1e-12)
+    np.testing.assert_allclose(episode.measurements["gps"].h, expected.h, atol=1e-6)
+    np.testing.assert_allclose(episode.measurements["gps"].v_n, expected.v_n, atol=1e-9)
     # the antenna is not the IMU: 2 m up the mast, its velocity is the swing's
-    assert np.abs(episode.extra["gps_v_n"] - episode.truth.v_n[::100]).max() > 0.1
+    assert np.abs(episode.measurements["gps"].v_n - episode.truth.v_n[::100]).max() > 0.1
 
 
 @pytest.mark.parametrize("table, field", [
@@ -238,14 +238,14 @@ def test_wave_boat_gnss_is_the_antenna_on_the_rigid_hull(tmp_path):
     from aligngym.models.earth import radii
     config = waves_with_slews(tmp_path, duration=30.0)
     episode = simulate(config, seed=1, ideal=True)
-    tr, gps = episode.truth, episode.extra
-    i = np.searchsorted(tr.t, gps["gps_t"])
+    tr, gps = episode.truth, episode.measurements["gps"]
+    i = np.searchsorted(tr.t, gps.t)
     arm_n = np.einsum("nij,j->ni", quat_to_dcm(tr.q_b_n[i]),
                       np.subtract(config.motion.antenna_b, config.motion.lever_arm_b))
     R_M, R_N = radii(tr.lat[i])
-    north = (gps["gps_lat"] - tr.lat[i]) * (R_M + tr.h[i])
-    east = (gps["gps_lon"] - tr.lon[i]) * (R_N + tr.h[i]) * np.cos(tr.lat[i])
-    np.testing.assert_allclose(np.stack([east, north, gps["gps_h"] - tr.h[i]], -1), arm_n,
+    north = (gps.lat - tr.lat[i]) * (R_M + tr.h[i])
+    east = (gps.lon - tr.lon[i]) * (R_N + tr.h[i]) * np.cos(tr.lat[i])
+    np.testing.assert_allclose(np.stack([east, north, gps.h - tr.h[i]], -1), arm_n,
                                atol=1e-6)
     # velocity: the IMU's plus d/dt (C_b^n arm), the derivative by central differences
     # of the truth at the IMU rate (error ~dt^2 omega^3 |arm| ~ 1e-5 m/s)
@@ -255,7 +255,7 @@ def test_wave_boat_gnss_is_the_antenna_on_the_rigid_hull(tmp_path):
     inner = i[(i > 0) & (i < tr.t.size - 1)]
     turning = np.einsum("nij,j->ni", C[inner + 1] - C[inner - 1], arm_b) / (2 * dt)
     expected = tr.v_n[inner] + turning
-    np.testing.assert_allclose(gps["gps_v_n"][np.isin(i, inner)], expected, atol=1e-3)
+    np.testing.assert_allclose(gps.v_n[np.isin(i, inner)], expected, atol=1e-3)
     assert np.abs(turning).max() > 0.1         # the arm's own swing velocity is large
 
 

@@ -133,7 +133,7 @@ def test_figure8_crosses_itself_and_turns_both_ways(figure8_episode):
     assert np.any((d < 3.0) & apart)  # it crosses itself
     yaw_rate = ep.dtheta[:, 2] / 0.01
     assert yaw_rate.max() > 0.05 and yaw_rate.min() < -0.05  # left and right turns
-    assert np.abs(ep.extra["cross_track"][ep.truth.t > 30]).max() < 1.5
+    assert np.abs(ep.cross_track[ep.truth.t > 30]).max() < 1.5
 
 
 def test_figure8_gps_export(figure8_episode):
@@ -153,10 +153,10 @@ def test_odometer_scale_error_and_slip():
     ep = simulate(config, seed=4)
     speed = np.linalg.norm(ep.truth.v_n[:, :2], axis=1)
     path = np.sum(0.5 * (speed[1:] + speed[:-1]) * np.diff(ep.truth.t))
-    effective = ep.extra["odo_distance"][-1] / path - 1.0
+    effective = ep.measurements["odometer"].distance[-1] / path - 1.0
     assert abs(effective - 0.003) < 0.02
     ideal = simulate(config, seed=4, ideal=True)
-    effective_ideal = ideal.extra["odo_distance"][-1] / path - 1.0
+    effective_ideal = ideal.measurements["odometer"].distance[-1] / path - 1.0
     assert effective - effective_ideal == pytest.approx(0.003, rel=0.02)
 
 

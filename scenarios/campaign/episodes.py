@@ -158,18 +158,18 @@ def simulate_screened(config: ScenarioConfig, seed: int):
         flags.append(screen_gimbal(t, episode.gimbal_encoder,
                                    config.motion.expected_gimbal_angles(t),
                                    config.encoder.resolution))
-    if "odo_distance" in episode.extra:
+    odometer, fixes = episode.measurements.get("odometer"), episode.measurements.get("gps")
+    if odometer is not None:
         forward = np.array([0.0, 1.0, 0.0])         # the body's forward axis (R, F, U)
         if config.motion.has_gimbal:                # in s: C_s_b^T e_F, mid-interval
             from aligngym.models.world import gimbal_C_s_b
             enc = episode.gimbal_encoder
             forward = gimbal_C_s_b(0.5 * (enc[:-1] + enc[1:]))[:, 1, :]
-        flags.append(screen_odometer(config.imu_interval, episode.extra["odo_distance"],
+        flags.append(screen_odometer(config.imu_interval, odometer.distance,
                                      np.sum(episode.dv * forward, axis=-1)))
-    if "gps_t" in episode.extra:
-        x = episode.extra
-        flags.append(screen_gnss(x["gps_t"], x["gps_lat"], x["gps_lon"], x["gps_h"],
-                                 x["gps_v_n"], x["gps_valid"]))
+    if fixes is not None:
+        flags.append(screen_gnss(fixes.t, fixes.lat, fixes.lon, fixes.h, fixes.v_n,
+                                 fixes.valid))
     kind = np.concatenate([k for k, _ in flags])
     time = np.concatenate([t for _, t in flags])
     order = np.argsort(time, kind="stable")

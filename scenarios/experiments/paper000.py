@@ -342,7 +342,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
     episode, flags = simulate_screened(config, seed)
     truth, dt = episode.truth, config.imu_interval
     motion, odo = config.motion, config.odometer
-    distance = episode.extra["odo_distance"]
+    distance = episode.measurements["odometer"].distance
     lever_b = np.subtract(motion.imu_offset_b, motion.car_params().rear_axle_b)
     i_start = int(round(experiment.coarse_start / dt))
     i0 = int(round((experiment.coarse_start + experiment.coarse_duration) / dt))
@@ -372,7 +372,7 @@ def prepare_episode(experiment: Paper000Experiment, seed: int,
     # Distance the slip bursts added (the wheel spun, the car did not travel): not scale.
     slipped = sum(extra for start, _, extra in odo.slips
                   if truth.t[drive[0]] <= start <= truth.t[drive[1]]) * (
-        1.0 + float(episode.extra["odo_scale_error"]))
+        1.0 + float(episode.measurements["odometer"].scale_error))
     C_s_n = quat_to_dcm(truth.q_s_n[idx])
     C_b_n = quat_to_dcm(truth.q_b_n[idx])
     return Paper000Episode(

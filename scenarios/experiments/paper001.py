@@ -320,7 +320,7 @@ def prepare_episode(experiment: Paper001Experiment, seed: int,
     config = config or experiment.scenario_config()
     episode, flags = simulate_screened(config, seed)
     truth, dt = episode.truth, config.imu_interval
-    gps = episode.extra
+    gps = episode.measurements["gps"]
     motion = config.motion
     lever_arm_b = np.subtract(motion.gps_antenna_b, motion.imu_offset_b)
     start, end = experiment.coarse_window(config)
@@ -331,26 +331,26 @@ def prepare_episode(experiment: Paper001Experiment, seed: int,
         omega_b = episode.dtheta[:n_coarse].sum(0) / (n_coarse * dt)
         C_coarse = static_coarse_alignment(f_b, omega_b, float(truth.lat[n_coarse]))
     else:
-        fixes = np.flatnonzero((gps["gps_t"] >= start - 1e-9) & (gps["gps_t"] <= end + 1e-9)
-                               & gps["gps_valid"])
+        fixes = np.flatnonzero((gps.t >= start - 1e-9) & (gps.t <= end + 1e-9)
+                               & gps.valid)
         C_coarse, _ = velocity_aided_alignment(
             episode.dtheta[n_start:n_coarse], episode.dv[n_start:n_coarse], dt,
-            (gps["gps_t"][fixes] - start) / dt, gps["gps_lat"][fixes], gps["gps_h"][fixes],
-            gps["gps_v_n"][fixes], lever_arm_b)
+            (gps.t[fixes] - start) / dt, gps.lat[fixes], gps.h[fixes],
+            gps.v_n[fixes], lever_arm_b)
     per_epoch = int(round(experiment.filter_step / dt))
     epochs = (truth.t.size - 1 - n_coarse) // per_epoch
     idx = n_coarse + per_epoch * np.arange(epochs + 1)
     t = truth.t[idx]
     dtheta = episode.dtheta[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3)
     dv = episode.dv[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3)
-    g = np.rint((t - gps["gps_t"][0]) * config.gps.rate).astype(int)
-    if np.any(np.abs(gps["gps_t"][g] - t) > 1e-6):
+    g = np.rint((t - gps.t[0]) * config.gps.rate).astype(int)
+    if np.any(np.abs(gps.t[g] - t) > 1e-6):
         raise ConfigError("paper001: the filter epochs must fall on GPS fixes (latency 0)")
-    heading_sigma = np.where(gps["gps_heading_valid"][g], gps["gps_heading_sigma"][g], np.nan)
+    heading_sigma = np.where(gps.heading_valid[g], gps.heading_sigma[g], np.nan)
     return Paper001Episode(
         **flags,
-        seed=seed, t=t, imu_dt=dt, dtheta=dtheta, dv=dv, gps_lat=gps["gps_lat"][g],
-        gps_lon=gps["gps_lon"][g], gps_h=gps["gps_h"][g], gps_v_n=gps["gps_v_n"][g],
+        seed=seed, t=t, imu_dt=dt, dtheta=dtheta, dv=dv, gps_lat=gps.lat[g],
+        gps_lon=gps.lon[g], gps_h=gps.h[g], gps_v_n=gps.v_n[g],
         gps_heading_sigma=heading_sigma, true_lat=truth.lat[idx], true_lon=truth.lon[idx],
         true_h=truth.h[idx], true_v_n=truth.v_n[idx],
         lever_arm_b=lever_arm_b, coarse_error=misalignment(C_b_n_true[n_coarse], C_coarse),

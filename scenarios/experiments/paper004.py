@@ -357,14 +357,14 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
     config = config or experiment.scenario_config()
     episode, flags = simulate_screened(config, seed)
     truth, dt = episode.truth, config.imu_interval
-    gps = episode.extra
+    gps = episode.measurements["gps"]
     m = config.motion
     lever_b = np.subtract(m.antenna_b, m.lever_arm_b)      # IMU on the indexer's axis
     C_s_b = gimbal_C_s_b(episode.gimbal_encoder)
     lever_s = np.einsum("nji,j->ni", C_s_b, lever_b)
     n_coarse = int(round(experiment.coarse_duration / dt))
-    fixes = np.flatnonzero((gps["gps_t"] <= experiment.coarse_duration + 1e-9)
-                           & gps["gps_valid"])
+    fixes = np.flatnonzero((gps.t <= experiment.coarse_duration + 1e-9)
+                           & gps.valid)
     # At rest: not slewing. The servo's finite stiffness lets the hull's yaw acceleration
     # deflect the rotor (a few 1e-4 rad in the severe sea), which the gyros see; the
     # coarse alignment takes the lever arm at the start (0.01 rad of it: 3 cm on 2.6 m).
@@ -374,15 +374,15 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
                           f"(0 to {experiment.coarse_duration:g} s); it moved "
                           f"{np.degrees(span):.2f} deg")
     C_coarse, residual = velocity_aided_alignment(
-        episode.dtheta[:n_coarse], episode.dv[:n_coarse], dt, gps["gps_t"][fixes] / dt,
-        gps["gps_lat"][fixes], gps["gps_h"][fixes], gps["gps_v_n"][fixes], lever_s[0])
+        episode.dtheta[:n_coarse], episode.dv[:n_coarse], dt, gps.t[fixes] / dt,
+        gps.lat[fixes], gps.h[fixes], gps.v_n[fixes], lever_s[0])
     C_s_n_true = quat_to_dcm(truth.q_s_n)
     per_epoch = int(round(experiment.filter_step / dt))
     epochs = (truth.t.size - 1 - n_coarse) // per_epoch
     idx = n_coarse + per_epoch * np.arange(epochs + 1)
     t = truth.t[idx]
     g = np.rint(t * config.gps.rate).astype(int)
-    if np.any(np.abs(gps["gps_t"][g] - t) > 1e-6):
+    if np.any(np.abs(gps.t[g] - t) > 1e-6):
         raise ConfigError("paper004: the filter epochs must fall on GNSS fixes (latency 0)")
     window = max(1, int(round(ENCODER_RATE_WINDOW / dt)))
     enc = episode.gimbal_encoder
@@ -394,8 +394,8 @@ def prepare_episode(experiment: Paper004Experiment, seed: int,
         seed=seed, t=t, imu_dt=dt,
         dtheta=episode.dtheta[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3),
         dv=episode.dv[n_coarse: idx[-1]].reshape(epochs, per_epoch, 3),
-        gps_lat=gps["gps_lat"][g], gps_lon=gps["gps_lon"][g], gps_h=gps["gps_h"][g],
-        gps_v_n=gps["gps_v_n"][g], lever_arm_s=lever_s[idx], omega_bs_s=omega_bs_s,
+        gps_lat=gps.lat[g], gps_lon=gps.lon[g], gps_h=gps.h[g],
+        gps_v_n=gps.v_n[g], lever_arm_s=lever_s[idx], omega_bs_s=omega_bs_s,
         coarse_error=misalignment(C_s_n_true[n_coarse], C_coarse),
         coarse_residual=float(residual), start_draw=draw,
         C_s_n_true=C_s_n_true[idx], C_b_n_true=quat_to_dcm(truth.q_b_n[idx]),

@@ -1,0 +1,123 @@
+"""The sensor role: what every sensor a scenario carries besides its IMU (the gimbal
+encoders, the odometer, the GNSS receiver, a Doppler velocity log, a user's own) is
+and does, and the registry that maps a scenario file's table to it.
+
+A sensor is a class registered with ``register_sensor``: its TOML table (``section``),
+the units of that table's keys, its presets and spec dataclass, the worlds that can carry
+it and the random stream it draws from; ``measure`` turns the truth an episode's motion
+gives (``SensorTruth``) into a typed record (``SensorRecord``). One file plus a table in
+a scenario file adds a sensor: ``sensors.suite`` imports every module of this package,
+and a user's module registers its class when it is imported."""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from aligngym.models.earth import TangentPlane
+    from aligngym.models.truth import NavigationTruth
+
+
+@dataclass(frozen=True)
+class SensorTruth:
+    """What an episode's sensors see of its motion. truth: at the IMU interval boundaries
+    (N+1 samples; q_b_n carrier body (R, F, U) to ENU, v_n of the IMU site, m/s);
+    plane: the local tangent plane at the scenario's origin; antenna: the GNSS antenna's
+    (t (G,) s, position (G, 3) m, velocity (G, 3) m/s in the plane) at the fix times, or
+    None; rear_wheels: the car's driven wheels' unwrapped angles (N+1, 2) rad, or None;
+    has_gimbal: the IMU turns on a gimbal. Arrays may be shared: read-only."""
+
+    truth: NavigationTruth
+    plane: TangentPlane
+    antenna: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    rear_wheels: np.ndarray | None = None
+    has_gimbal: bool = False
+
+
+@dataclass(frozen=True)
+class SensorRecord:
+    """A sensor's output of one episode: a frozen dataclass of arrays. ``arrays()`` gives
+    them by their names in the exported data files (``PREFIX`` + field name, unless the
+    field says otherwise in ``NAMES``)."""
+
+    PREFIX: ClassVar[str] = ""
+    NAMES: ClassVar[dict[str, str]] = {}
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The record's arrays, by their export names (a field that is None is left out)."""
+        return {self.NAMES.get(f.name, self.PREFIX + f.name): np.asarray(getattr(self, f.name))
+                for f in fields(self) if getattr(self, f.name) is not None}
+
+
+@dataclass(frozen=True)
+class FaultLog(SensorRecord):
+    """Every fault injected into an episode (F,): its kind ("imu_spike", "gnss_outage",
+    "odometer_slip", ...), start and end, s."""
+
+    PREFIX = "fault_"
+    kind: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+
+class Sensor(ABC):
+    """One sensor of a scenario, built from its spec (the section's dataclass).
+
+    Class attributes: ``section`` (its scenario-file table and the key of its record in
+    ``Episode.measurements``); ``spec_type`` (the table's dataclass); ``units`` (each key's
+    unit suffix in the file: "_m", "_s", "_hz", "_deg", "_deg_s", "_arcsec" or "" for
+    none); ``presets`` (name -> spec, for ``preset = "..."``); ``worlds`` (the worlds that
+    can carry it; empty: every world); ``stream`` (its random stream of the episode,
+    ``simulate.episode_rngs``); ``always`` (carried by every scenario, with the spec's
+    defaults where the file has no table)."""
+
+    section: ClassVar[str]
+    spec_type: ClassVar[type]
+    units: ClassVar[dict[str, str]] = {}
+    presets: ClassVar[dict[str, Any]] = {}
+    worlds: ClassVar[tuple[str, ...]] = ()
+    stream: ClassVar[str]
+    always: ClassVar[bool] = False
+
+    def __init__(self, spec: Any) -> None:
+        self.spec = spec
+
+    def check(self, duration: float, imu_rate: float, world: str) -> None:
+        """Raise ValueError naming ``section.field`` where the spec cannot serve a run of
+        duration (s) at imu_rate (Hz) in world (the spec's own checks ran already)."""
+
+    @abstractmethod
+    def measure(self, truth: SensorTruth, rng: np.random.Generator, ideal: bool
+                ) -> SensorRecord:
+        """The sensor's record of one episode; ideal: without any error (no draw needed
+        from rng)."""
+
+    def faults(self, record: SensorRecord, duration: float
+               ) -> list[tuple[str, float, float]]:
+        """The faults the spec injects, as (kind, start s, end s) rows of the episode's
+        fault record (``Episode.faults``)."""
+        return []
+
+
+SENSORS: dict[str, type[Sensor]] = {}
+"""Registered sensors by their section (``register_sensor``)."""
+
+
+def register_sensor(cls: type[Sensor]) -> type[Sensor]:
+    """Register a sensor class under its section (a class decorator). A section is a
+    scenario-file table: one of the file's own (origin, run, imu, motion, filter,
+    indexer, faults) or one already taken is refused."""
+    reserved = ("origin", "run", "imu", "motion", "filter", "indexer", "faults")
+    name = getattr(cls, "section", "")
+    if not (isinstance(name, str) and name.isidentifier()) or name in reserved:
+        raise ValueError(f"sensor section {name!r} must be a name other than "
+                         + ", ".join(reserved))
+    if SENSORS.get(name, cls) is not cls and SENSORS[name].__qualname__ != cls.__qualname__:
+        raise ValueError(f"sensor section [{name}] is taken by {SENSORS[name].__name__}")
+    if not isinstance(getattr(cls, "stream", None), str):
+        raise ValueError(f"sensor {cls.__name__} must name its random stream")
+    SENSORS[name] = cls
+    return cls
