@@ -10,9 +10,9 @@ import pytest
 @pytest.fixture
 def aligngym_episode():
     """make(scenario, seed=0, duration=None, ideal=False) -> ``scenarios.simulate.Episode``:
-    the scenario's sensor data (imu_t, dtheta, dv, gimbal_encoder, the other sensors' records in measurements) and its
-    navigation truth (``episode.truth``) for one seed; duration in s (None: the
-    scenario's); ideal: error-free sensors."""
+    the scenario's sensor data (imu_t, dtheta, dv, gimbal_encoder, and the other sensors'
+    records in measurements) and its navigation truth (``episode.truth``) for one seed;
+    duration in s (None: the scenario's); ideal: error-free sensors."""
     def make(scenario: str, seed: int = 0, duration: float | None = None,
              ideal: bool = False):
         from aligngym.scenarios.config import load_scenario
