@@ -25,7 +25,7 @@ from aligngym.models.world import DiscreteRun, GimbalRates, skip_sensors, stalle
 
 RHO_G = 1025.0 * 9.81
 WAVE_TIMESTEP = 0.002
-"""MuJoCo's step of the wave-driven hull, s (500 Hz, ``scenarios.config.PHYSICS_RATE``)."""
+"""MuJoCo's step of the wave-driven hull, s (500 Hz, ``scenarios.worlds.ShipInWaves.physics_rate``)."""
 
 
 @dataclass(frozen=True)

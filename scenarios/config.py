@@ -9,11 +9,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from aligngym.models.car import VehicleMotion
 from aligngym.models.indexer import IndexerSpec
-from aligngym.models.platform import StaticPlatformMotion
-from aligngym.models.ship import ShipSwayMotion
-from aligngym.models.waves import WaveShipMotion
 from aligngym.models.units import (G0, arcsec, deg, deg_per_h, deg_per_sqrt_h,
                                    m_per_s_per_sqrt_h, ug)
 from aligngym.scenarios.registry import DATA_DIR, scenario_names  # noqa: F401  (re-exported)
@@ -23,11 +19,9 @@ from aligngym.sensors.gps import GPS_PRESETS, GpsSpec
 from aligngym.sensors.imu import IMU_PRESETS, ImuSpec
 from aligngym.sensors.odometer import ODOMETER_PRESETS, OdometerSpec
 from aligngym.sensors.suite import SensorSuite, sensor_types
+from aligngym.scenarios.worlds import WORLDS, UnknownMotionKey, check_range, world_named
 
 BIAS_FRAMES = ("sensor", "hull")
-WORLDS = ("car", "ship-prescribed", "ship-waves", "static-platform")
-PHYSICS_RATE = {"car": 500.0, "ship-waves": 500.0}
-"""MuJoCo rates of the dynamic worlds, Hz; their IMU rate must divide it."""
 
 
 # Key suffix -> factor to SI, longest suffix first.
@@ -120,14 +114,14 @@ def _to_si(table: dict[str, Any], section: str, units: dict[str, str] = UNITS
             out[name] = _scale(value, factor) if written else _checked(value)
         except (TypeError, ValueError, OverflowError) as exc:
             raise ConfigError(f"{section}.{key}: {exc}") from None
-        if units is UNITS:
-            _check_kind(f"{section}.{key}", name, out[name])
+        _check_kind(f"{section}.{key}", name, out[name])
     return out
 
 
 def _check_kind(field: str, name: str, value: Any) -> None:
     """A known parameter's value has its kind: 3 numbers, a string, an integer or a
-    number (``VECTORS``, ``STRINGS``, ``INTEGERS``; ``FREE`` ones are checked later)."""
+    number (``VECTORS``, ``STRINGS``, ``INTEGERS``; ``FREE`` ones and a registered
+    sensor's or world's own are checked by their dataclass)."""
     if name not in UNITS or name in FREE:
         return
     if name == "linear_phase" and value == "random":
@@ -237,10 +231,10 @@ class SettingError(ConfigError):
 
 def _check_range(field: str, value: float, low: float, high: float, unit: str,
                  low_open: bool = False) -> None:
-    ok = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
-    if not ok:
-        bracket = "(" if low_open else "["
-        raise ConfigError(f"{field} = {value:g} {unit} is out of range {bracket}{low:g}, {high:g}]")
+    try:
+        check_range(field, value, low, high, unit, low_open)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 @dataclass(frozen=True)
@@ -259,7 +253,9 @@ class ScenarioConfig:
     imu_preset: str
     imu: ImuSpec
     encoder: GimbalEncoderSpec
-    motion: ShipSwayMotion | VehicleMotion | WaveShipMotion | StaticPlatformMotion
+    motion: Any
+    """The world's [motion] (its ``motion_type``: ShipSwayMotion, VehicleMotion,
+    WaveShipMotion, StaticPlatformMotion or a registered world's)."""
     random_linear_phase: bool
     odometer: OdometerSpec | None = None
     gps: GpsSpec | None = None
@@ -344,40 +340,22 @@ class ScenarioConfig:
             except ValueError as exc:
                 raise ConfigError(_written_in(str(exc), sensor.section,
                                               sensor_units(sensor.section))) from None
-        if self.gps is not None and self.world not in PHYSICS_RATE:
+        world = world_named(self.world)
+        if self.gps is not None and not world.dynamic:
             ratio = self.imu_rate / self.gps.rate
             if abs(ratio - round(ratio)) > 1e-9:
                 raise ConfigError(f"gps.rate_hz = {self.gps.rate:g} Hz must divide {rate} "
                                   f"= {self.imu_rate:g} Hz")
-        if self.world in PHYSICS_RATE:
-            physics = PHYSICS_RATE[self.world]
+        if world.dynamic:
+            physics = world.physics_rate
             ratio = physics / self.imu_rate
             if abs(ratio - round(ratio)) > 1e-9:
                 raise ConfigError(f"{rate} = {self.imu_rate:g} Hz must divide the "
                                   f"{self.world} physics rate {physics:g} Hz")
-            try:
-                self.motion.check()
-            except ValueError as exc:
-                raise ConfigError(_as_written(str(exc))) from None
-            return
-        m = self.motion
-        if self.world == "static-platform":
-            _check_range(_key("motion", "yaw"), m.yaw_mean / deg, -360.0, 360.0, "deg")
-            _check_range(_key("motion", "pitch"), m.pitch / deg, -10.0, 10.0, "deg")
-            _check_range(_key("motion", "roll"), m.roll / deg, -10.0, 10.0, "deg")
-            if m.has_gimbal:
-                raise ConfigError("motion: the static platform has no gimbal; "
-                                  "gimbal rates must be 0 deg/s")
-            return
-        for name in ("yaw_period", "pitch_period", "roll_period"):
-            _check_range(_key("motion", name), getattr(m, name), 0.0, 1e4, "s", low_open=True)
-        for name in ("yaw_amplitude", "pitch_amplitude", "roll_amplitude"):
-            _check_range(_key("motion", name), getattr(m, name) / deg, 0.0, 45.0, "deg")
-        for i, (a, p) in enumerate(zip(m.linear_amplitude, m.linear_period)):
-            _check_range(f"{_key('motion', 'linear_amplitude')}[{i}]", a, 0.0, 50.0, "m")
-            _check_range(f"{_key('motion', 'linear_period')}[{i}]", p, 0.0, 1e4, "s", low_open=True)
-        for name in ("gimbal_outer_rate", "gimbal_inner_rate"):
-            _check_range(_key("motion", name), getattr(m, name) / deg, -360.0, 360.0, "deg/s")
+        try:
+            world.check(self)
+        except ValueError as exc:
+            raise ConfigError(_as_written(str(exc))) from None
 
 
 def scenario_path(name_or_path: str) -> Path:
@@ -419,21 +397,25 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     for key in TOP_KEYS:
         if key in raw and not isinstance(raw[key], str):
             raise ConfigError(f"{source}: {key} must be a string, got {raw[key]!r}")
-    def section(name: str, required: bool = True) -> dict[str, Any]:
+    def section(name: str, required: bool = True,
+                units: dict[str, str] = UNITS) -> dict[str, Any]:
         if name not in raw:
             if required:
                 raise ConfigError(f"{source}: missing table [{name}]")
             return {}
         if not isinstance(raw[name], dict):
             raise ConfigError(f"{source}: [{name}] must be a table")
-        return _to_si(raw[name], name)
+        return _to_si(raw[name], name, units)
 
     if "world" not in raw:
-        raise ConfigError(f"{source}: missing key world; valid choices: " + ", ".join(WORLDS))
+        raise ConfigError(f"{source}: missing key world; valid choices: "
+                          + ", ".join(sorted(WORLDS)))
     world = raw["world"]
     if world not in WORLDS:
         raise _unknown_choice("world", world, WORLDS)
-    origin, run, imu, motion = (section(s) for s in ("origin", "run", "imu", "motion"))
+    carrier = world_named(world)
+    motion = section("motion", units={**UNITS, **carrier.units})
+    origin, run, imu = (section(s) for s in ("origin", "run", "imu"))
     for name, table, keys in (("origin", origin, ("latitude", "longitude", "height")),
                               ("run", run, ("duration", "imu_rate"))):
         valid = [k + UNITS[k] for k in keys]
@@ -448,29 +430,19 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     if bias_frame not in BIAS_FRAMES:
         raise _unknown_choice("imu.bias_frame", bias_frame, BIAS_FRAMES)
     preset, imu_spec = _imu_spec(imu)
-    if world not in ("ship-prescribed", "ship-waves") and "indexer" in raw:
+    if not carrier.carries_indexer and "indexer" in raw:
         raise ConfigError(f"[indexer] exists on the ship worlds only, not {world}")
     indexer = section("indexer", False)
     if indexer:
         motion["indexer"] = _indexer(indexer)
-    if world == "car":
-        motion_obj, random_phase = _dataclass_from(VehicleMotion, motion, "motion"), False
-    elif world == "ship-waves":
-        motion_obj, random_phase = _dataclass_from(WaveShipMotion, motion, "motion"), False
-    elif world == "static-platform":
-        motion_obj, random_phase = _platform_motion(raw["motion"]), False
-    else:
-        phase = motion.pop("linear_phase", "random")
-        random_phase = phase == "random"
-        if not random_phase:
-            if not (isinstance(phase, tuple) and len(phase) == 3):
-                raise ConfigError("motion.linear_phase must be \"random\" or "
-                                  "linear_phase_deg = [3 values]")
-            motion["linear_phase"] = phase
-        for key in ("linear_amplitude", "linear_period", "linear_phase", "lever_arm_b"):
-            if key in motion and len(motion[key]) != 3:
-                raise ConfigError(f"motion.{key} must have 3 values (E, N, U or R, F, U)")
-        motion_obj = _dataclass_from(ShipSwayMotion, motion, "motion")
+    try:
+        fields_, random_phase = carrier.motion_fields(motion)
+    except UnknownMotionKey as exc:
+        written = exc.name + UNITS.get(exc.name, "")
+        raise _not_a_parameter(f"motion.{written}", written, exc.valid, exc.what) from None
+    except ValueError as exc:
+        raise ConfigError(_as_written(str(exc))) from None
+    motion_obj = _dataclass_from(carrier.motion_type, fields_, "motion")
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
@@ -600,21 +572,6 @@ def _indexer(table: dict[str, Any]) -> IndexerSpec:
         except (TypeError, ValueError):
             raise ConfigError("indexer.schedule must be a list of [time_s, angle_deg] rows")
     return _dataclass_from(IndexerSpec, table, "indexer")
-
-
-_PLATFORM_KEYS = {"yaw_deg": "yaw_mean", "pitch_deg": "pitch", "roll_deg": "roll"}
-
-
-def _platform_motion(table: dict[str, Any]) -> StaticPlatformMotion:
-    """The static platform's attitude from its [motion] table (keys in deg; absent keys
-    take the defaults)."""
-    unknown = sorted(set(table) - set(_PLATFORM_KEYS))
-    if unknown:
-        raise _not_a_parameter(f"motion.{unknown[0]}", unknown[0], sorted(_PLATFORM_KEYS),
-                               " of the static platform")
-    values = _to_si(table, "motion")
-    return StaticPlatformMotion(**{_PLATFORM_KEYS[key + "_deg"]: value
-                                   for key, value in values.items()})
 
 
 def _sensor(values: dict[str, Any], presets: dict, cls, section: str,

@@ -20,7 +20,8 @@ from typing import Iterator
 import numpy as np
 
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
-from aligngym.scenarios.simulate import episode_rngs, make_dynamic_world, make_world, run_gimbal
+from aligngym.scenarios.simulate import episode_rngs
+from aligngym.scenarios.worlds import make_dynamic_world, make_world, run_gimbal, world_of
 
 
 def check_size(size: tuple[int, int]) -> None:
@@ -44,14 +45,8 @@ class View:
 
 
 def world_view(config: ScenarioConfig) -> View:
-    """The follow camera and close-up of the scenario's world."""
-    if config.world == "static-platform":
-        return View(distance=2.8, elevation=-30.0, azimuth=135.0, inset=0.9)
-    if config.world == "car":
-        return View(distance=10.0, elevation=-20.0, azimuth=40.0, inset=1.1)
-    length = max(config.motion.hull_size)
-    gimbal = max(0.6 * min(1.0, config.motion.hull_size[0] / 18.0), 0.03 * length)
-    return View(distance=1.15 * length, elevation=-15.0, azimuth=30.0, inset=3.2 * gimbal)
+    """The follow camera and close-up of the scenario's world (``World.camera``)."""
+    return View(*world_of(config).camera(config))
 
 
 class SceneRenderer:
@@ -68,7 +63,9 @@ class SceneRenderer:
         self.duration = config.duration if duration is None else float(duration)
         rngs = episode_rngs(seed)
         self._run = None
-        if config.world in ("car", "ship-waves"):
+        carrier = world_of(config)
+        self._look_between = carrier.look_between
+        if carrier.dynamic:
             self.world = make_dynamic_world(config, rngs, pictures=True)
             self._run = self.world.run(self.duration)
         else:
@@ -84,8 +81,8 @@ class SceneRenderer:
         self._inset_size = (height // 3, width // 3)
         self._camera, self._close = mujoco.MjvCamera(), mujoco.MjvCamera()
         self._inset_option = mujoco.MjvOption()
-        if config.world == "car":       # the IMU sits inside the body: the close-up shows
-            self._inset_option.geomgroup[:] = [0, 0, 1, 0, 0, 0]    # the instruments alone
+        if carrier.close_up_groups is not None:     # e.g. the car's instruments alone
+            self._inset_option.geomgroup[:] = carrier.close_up_groups
         self._carrier = model.body("carrier").id
         self._imu_site = model.site("imu").id
         self._gimbal_qpos = getattr(self.world, "_gimbal_qpos", None)
@@ -143,8 +140,7 @@ class SceneRenderer:
     def _aim(self) -> None:
         view, data = self.view, self.data
         carrier, imu = data.xpos[self._carrier], data.site_xpos[self._imu_site]
-        self._camera.lookat[:] = 0.5 * (carrier + imu) if self.config.world.startswith(
-            "ship") else imu
+        self._camera.lookat[:] = 0.5 * (carrier + imu) if self._look_between else imu
         self._camera.distance, self._camera.elevation = view.distance, view.elevation
         self._camera.azimuth = self._heading_deg() + view.azimuth
         self._close.lookat[:] = imu

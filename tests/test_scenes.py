@@ -10,7 +10,7 @@ import pytest
 
 from aligngym.models.car import CarParams, CarWorld, car_mjcf
 from aligngym.scenarios.config import load_scenario
-from aligngym.scenarios.simulate import make_world
+from aligngym.scenarios.worlds import make_world
 
 MIN_PIXELS = 20
 """Least pixels a key geom covers in a 240 x 320 frame (the smallest measured: 50, an
