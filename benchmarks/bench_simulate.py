@@ -19,7 +19,8 @@ import numpy as np
 from aligngym.models.world import ROLLOUT_THREADS
 from aligngym.scenarios.config import load_scenario
 from aligngym.scenarios.simulate import simulate
-from aligngym.scenarios.worlds import TRUTH_OVERSAMPLING, _prescribed_world_truth, make_world
+from aligngym.scenarios.world_truth import TRUTH_OVERSAMPLING, prescribed_world_truth
+from aligngym.scenarios.worlds import make_world
 from aligngym.scenarios.truth_cache import TRUTH_CACHE_ENV
 
 
@@ -66,7 +67,7 @@ def main() -> None:
     config = load_scenario("ship-sway-rotary")
 
     def episode():
-        _prescribed_world_truth.cache_clear()            # the truth is cached per process too
+        prescribed_world_truth.cache_clear()            # the truth is cached per process too
         simulate(config, seed=1)
 
     def timed():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from aligngym.scenarios import simulate as sim
-from aligngym.scenarios import worlds
+from aligngym.scenarios import world_truth
 from aligngym.scenarios import truth_cache
 from aligngym.scenarios.config import load_scenario
 
@@ -19,9 +19,9 @@ def cache(tmp_path, monkeypatch):
     monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, str(tmp_path / "truth"))
     monkeypatch.setattr(truth_cache, "FREE_BYTES_KEPT", 0)   # written on a fuller disk too
     monkeypatch.setattr(truth_cache, "_reported", set())
-    worlds._prescribed_world_truth.cache_clear()               # the per-process level: only the disk's
+    world_truth.prescribed_world_truth.cache_clear()   # the per-process level: only the disk's
     yield tmp_path / "truth"
-    worlds._prescribed_world_truth.cache_clear()
+    world_truth.prescribed_world_truth.cache_clear()
 
 
 def ship(duration=20.0):
@@ -41,8 +41,8 @@ def test_an_entry_is_loaded_instead_of_simulated_and_gives_the_same_episode(cach
                                                                            monkeypatch):
     first = sim.simulate(ship(), seed=3)
     assert len(list(cache.glob("ship-prescribed-*.npz"))) == 1
-    worlds._prescribed_world_truth.cache_clear()
-    monkeypatch.setattr(worlds, "_prescribed_truth", no_simulation)
+    world_truth.prescribed_world_truth.cache_clear()
+    monkeypatch.setattr(world_truth, "_prescribed_truth", no_simulation)
     same(first, sim.simulate(ship(), seed=3))
     with pytest.raises(ValueError, match="read-only"):
         sim.simulate(ship(), seed=3).truth.q_b_n[0, 0] = 1.0
@@ -52,7 +52,7 @@ def test_a_damaged_entry_is_simulated_again(cache):
     first = sim.simulate(ship(), seed=4)
     (entry,) = cache.glob("*.npz")
     entry.write_bytes(entry.read_bytes()[:1000])          # cut short, as by a full disk
-    worlds._prescribed_world_truth.cache_clear()
+    world_truth.prescribed_world_truth.cache_clear()
     same(first, sim.simulate(ship(), seed=4))
     with np.load(entry) as f:
         assert "dtheta" in f.files                         # written whole again
@@ -63,16 +63,16 @@ def test_a_cache_that_cannot_be_written_is_reported_once(tmp_path, monkeypatch):
     blocker.write_text("not a directory")
     monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, str(blocker / "truth"))
     monkeypatch.setattr(truth_cache, "_reported", set())
-    worlds._prescribed_world_truth.cache_clear()
+    world_truth.prescribed_world_truth.cache_clear()
     with pytest.warns(RuntimeWarning, match="cannot be written.*simulating without it"):
         first = sim.simulate(ship(), seed=5)
-    worlds._prescribed_world_truth.cache_clear()
+    world_truth.prescribed_world_truth.cache_clear()
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         again = sim.simulate(ship(), seed=5)
     same(first, again)
-    worlds._prescribed_world_truth.cache_clear()
+    world_truth.prescribed_world_truth.cache_clear()
 
 
 def test_off_and_another_code_version_use_no_entry(cache, monkeypatch):

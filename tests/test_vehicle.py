@@ -49,7 +49,7 @@ def test_smooth_road_run_is_shared_by_every_seed_and_changes_nothing(monkeypatch
     is simulated once per process; each seed's sensor errors still differ, an episode
     equals the one simulated afresh, nobody can modify the shared truth, and a rough
     road gets its own run per seed."""
-    from aligngym.scenarios import worlds
+    from aligngym.scenarios import world_truth
 
     config = load_scenario("ring-road-odometer").with_options(duration=20.0)
     first, second = simulate(config, seed=0), simulate(config, seed=1)
@@ -59,7 +59,7 @@ def test_smooth_road_run_is_shared_by_every_seed_and_changes_nothing(monkeypatch
     assert not np.array_equal(first.dtheta, second.dtheta)
     with pytest.raises(ValueError, match="read-only"):
         first.truth.v_n[0, 0] = 1.0
-    worlds._shared_runs.clear()
+    world_truth._shared_runs.clear()
     monkeypatch.setenv("ALIGNGYM_TRUTH_CACHE", "off")
     afresh = simulate(config, seed=1)
     assert not np.shares_memory(afresh.truth.q_b_n, second.truth.q_b_n)
@@ -68,7 +68,7 @@ def test_smooth_road_run_is_shared_by_every_seed_and_changes_nothing(monkeypatch
     bumpy = rough("ring-road-odometer", 6.0)
     a, b = simulate(bumpy, seed=0), simulate(bumpy, seed=1)
     assert not np.array_equal(a.truth.q_b_n, b.truth.q_b_n)
-    worlds._shared_runs.clear()
+    world_truth._shared_runs.clear()
 
 
 def test_gps_error_statistics_and_heading_sigma():
@@ -204,18 +204,18 @@ def test_fidelity_car_with_gimbal():
 def test_a_shorter_smooth_road_run_is_the_start_of_a_longer_one():
     """One run per motion on a smooth road: an episode cut from a longer run equals the
     episode simulated afresh at its own duration (GPS fixes and odometer included)."""
-    from aligngym.scenarios import worlds
+    from aligngym.scenarios import world_truth
 
     for name in ("figure8-gps", "ring-road-odometer"):
         base = load_scenario(name)
-        worlds._shared_runs.clear()
+        world_truth._shared_runs.clear()
         simulate(base.with_options(duration=40.0), seed=2)             # the longer run
         cut = simulate(base.with_options(duration=23.0), seed=2)
         assert cut.truth.t.base is not None                            # a view of it
-        worlds._shared_runs.clear()
+        world_truth._shared_runs.clear()
         with pytest.MonkeyPatch.context() as patch:
             patch.setenv("ALIGNGYM_TRUTH_CACHE", "off")
             afresh = simulate(base.with_options(duration=23.0), seed=2)
         for key, value in afresh.arrays().items():
             np.testing.assert_array_equal(cut.arrays()[key], value, err_msg=f"{name} {key}")
-        worlds._shared_runs.clear()
+        world_truth._shared_runs.clear()
