@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from aligngym.models.indexer import IndexerSpec
+from aligngym.models.schedule import Schedule, ScheduleEntry
 from aligngym.models.units import (G0, arcsec, deg, deg_per_h, deg_per_sqrt_h,
                                    m_per_s_per_sqrt_h, ug)
 from aligngym.scenarios.config_keys import (SECTIONS, TOP_KEYS, UNITS,  # noqa: F401
@@ -56,6 +57,9 @@ class ScenarioConfig:
     scenario's experiment validates (e.g. paper 002's initial_covariance)."""
     faults: ImuFaults = ImuFaults()
     sensors: tuple[tuple[str, Any], ...] = ()
+    schedule: Schedule = Schedule()
+    """The disturbances that change within the episode ([[schedule]]: the GNSS
+    receiver's sigmas and multipath, the IMU's white noise), SI."""
     """The registered sensors without a field of their own (``sensors.base``), as
     (section, spec) pairs in the file's order: a [dvl] table, a user's sensor."""
     experiment: str = ""
@@ -89,8 +93,9 @@ class ScenarioConfig:
         return specs
 
     def sensor_suite(self) -> SensorSuite:
-        """The scenario's sensors besides its IMU (``sensor_specs``), to measure with."""
-        return SensorSuite.of(self.sensor_specs())
+        """The scenario's sensors besides its IMU (``sensor_specs``), to measure with,
+        under the schedule."""
+        return SensorSuite.of(self.sensor_specs(), self.schedule)
 
     @property
     def imu_interval(self) -> float:
@@ -118,6 +123,7 @@ class ScenarioConfig:
                               f" of IMU intervals of {self.imu_interval:g} s")
         try:
             self.faults.check(self.duration)
+            self.schedule.check(self.duration)
         except ValueError as exc:
             raise ConfigError(_as_written(str(exc))) from None
         for sensor in self.sensor_suite().sensors:
@@ -174,7 +180,7 @@ def load_scenario(name_or_path: str) -> ScenarioConfig:
 def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     plugged = [name for name in sensor_types() if name not in SECTIONS]
     tables = [*SECTIONS, *plugged]
-    unknown = sorted(set(raw) - set(tables) - set(TOP_KEYS))
+    unknown = sorted(set(raw) - set(tables) - set(TOP_KEYS) - {"schedule"})
     if unknown:
         close = difflib.get_close_matches(unknown[0], [*tables, *TOP_KEYS], n=1,
                                           cutoff=0.6)
@@ -237,6 +243,9 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
     sensors = tuple((name, _plugged_sensor(raw, name, source)) for name in plugged
                     if name in raw)
+    present = {"gps": gps, "odometer": odometer, "encoder": encoder, **dict(sensors)}
+    schedule = _schedule(raw.get("schedule", []), source,
+                         {k: v for k, v in present.items() if v is not None}, imu_spec)
     filter_table = tuple(sorted(section("filter", False).items()))
     if "gimbal_stalls" in motion:
         raise ConfigError("motion.gimbal_stalls: stalls are faults; write them in [faults] "
@@ -256,7 +265,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
             imu_preset=preset, imu=imu_spec, imu_bias_frame=bias_frame,
             encoder=encoder, motion=motion_obj,
             random_linear_phase=random_phase, odometer=odometer, gps=gps,
-            sensors=sensors, filter=filter_table, faults=faults)
+            sensors=sensors, schedule=schedule, filter=filter_table, faults=faults)
     except KeyError as exc:
         raise ConfigError(f"{source}: missing key {exc.args[0]}") from None
     config.validate()
@@ -388,3 +397,75 @@ def _plugged_sensor(raw: dict[str, Any], name: str, source: str):
     if not values:                      # an empty table: the spec's defaults
         return cls.spec_type()
     return _sensor(values, cls.presets, cls.spec_type, name, cls.units)
+
+
+SCHEDULED_IMU = ("gyro_arw_deg_sqrt_h", "accel_vrw_m_s_sqrt_h", "accel_vrw_ug_sqrt_hz")
+"""The [imu] keys a [[schedule]] entry may change (the white noise: a vibration burst)."""
+
+
+def _schedule(rows: Any, source: str, specs: dict[str, Any], imu: ImuSpec) -> Schedule:
+    """The [[schedule]] list: per entry its time_s, ramp_s (0 if absent) and, per table it
+    changes (imu, or a sensor of the scenario with schedulable fields), the new values in
+    that table's units; each checked by the table's own spec."""
+    if not (isinstance(rows, list) and all(isinstance(row, dict) for row in rows)):
+        raise ConfigError(f"{source}: schedule must be a list of [[schedule]] tables")
+    entries = []
+    for i, row in enumerate(rows):
+        where, row = f"schedule[{i}]", dict(row)
+        if "time_s" not in row:
+            raise ConfigError(f"{source}: {where} has no time_s")
+        timing = _to_si({k: row.pop(k) for k in ("time_s", "ramp_s") if k in row}, where,
+                        {"time": "_s", "ramp": "_s"})
+        if not row:
+            raise ConfigError(f"{where} changes nothing; give new values of a table, e.g. "
+                              "gps.position_sigma_h_m = 2.5")
+        for section, table in row.items():
+            if not isinstance(table, dict):
+                raise ConfigError(f"{where}.{section} must be a table's keys, e.g. "
+                                  f"{section}.name = value")
+            values = (_scheduled_imu(table, f"{where}.imu", imu) if section == "imu" else
+                      _scheduled_sensor(table, f"{where}.{section}", section, specs))
+            entries.append(ScheduleEntry(timing["time"], timing.get("ramp", 0.0), section,
+                                         tuple(sorted(values.items())), where))
+    return Schedule(tuple(entries))
+
+
+def _scheduled_sensor(table: dict[str, Any], where: str, section: str,
+                      specs: dict[str, Any]) -> dict[str, float]:
+    """A schedule entry's new values (SI) for the scenario's sensor ``section``."""
+    can = {name: sensor_types()[name].schedulable for name in specs
+           if sensor_types()[name].schedulable}
+    if section not in can:
+        raise _unknown_choice(where.rsplit(".", 1)[0] + " table", section, ["imu", *can])
+    units = sensor_units(section)
+    values = _to_si(table, where, units)
+    valid = sorted(name + units.get(name, "") for name in can[section])
+    for name in values:
+        if name not in can[section]:
+            written = name + units.get(name, "")
+            raise _not_a_parameter(f"{where}.{written}", written, valid,
+                                   " a schedule may change")
+    try:
+        replace(specs[section], **values)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where.rsplit('.', 1)[0]}: "
+                          + _written_in(str(exc), section, units)) from None
+    return values
+
+
+def _scheduled_imu(table: dict[str, Any], where: str, imu: ImuSpec) -> dict[str, float]:
+    """A schedule entry's new white-noise densities of the IMU, SI, by
+    "gyro.white_noise_density" / "accel.white_noise_density"."""
+    values: dict[str, float] = {}
+    for key, value in table.items():
+        if key not in SCHEDULED_IMU:
+            raise _not_a_parameter(f"{where}.{key}", key, list(SCHEDULED_IMU),
+                                   " a schedule may change")
+        triad, name, factor, bound = IMU_DATASHEET[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                0.0 <= value <= bound):
+            raise ConfigError(f"{where}.{key} = {value!r} is out of range [0, {bound:g}]")
+        if f"{triad}.{name}" in values:
+            raise ConfigError(f"{where}.{key}: the {triad} white noise is given twice")
+        values[f"{triad}.{name}"] = float(value) * factor
+    return values

@@ -46,6 +46,7 @@ UNITS = {
     # GPS (velocity_sigma and heading_min_speed in m/s, no suffix)
     "rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
     "velocity_sigma": "", "heading_min_speed": "", "latency": "_s", "outages": "_s",
+    "multipath_dof": "",
     "outliers": "", "slips": "",
     # IMU data faults (rows: see sensors.faults)
     "spikes": "", "saturation": "", "gaps": "", "nans": "", "gimbal_stalls": "",

@@ -228,5 +228,21 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
         mid = 0.5 * (gimbal_angles[:-1] + gimbal_angles[1:])
         rotation = np.swapaxes(gimbal_C_s_b(mid), -1, -2)
     dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu, realization,
-                                  rngs["imu_noise"], rotation)
+                                  rngs["imu_noise"], rotation, _white_noise(config,
+                                                                            dtheta.shape[0]))
     return dtheta, dv, realization
+
+
+def _white_noise(config: ScenarioConfig, intervals: int
+                 ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The gyro's and the accelerometer's white-noise density (rad/sqrt(s), m/s/sqrt(s))
+    per IMU interval, at its middle, where the schedule changes it (a vibration burst);
+    None where it does not."""
+    t = (np.arange(intervals) + 0.5) * config.imu_interval
+    out = []
+    for triad in ("gyro", "accel"):
+        name = f"{triad}.white_noise_density"
+        out.append(config.schedule.profile("imu", name, getattr(config.imu, triad)
+                                           .white_noise_density, t)
+                   if config.schedule.touches("imu", name) else None)
+    return out[0], out[1]

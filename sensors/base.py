@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from aligngym.models.schedule import Schedule
+
 if TYPE_CHECKING:
     from aligngym.models.earth import TangentPlane
     from aligngym.models.truth import NavigationTruth
@@ -72,7 +74,9 @@ class Sensor(ABC):
     none); ``presets`` (name -> spec, for ``preset = "..."``); ``worlds`` (the worlds that
     can carry it; empty: every world); ``stream`` (its random stream of the episode,
     ``simulate.episode_rngs``); ``always`` (carried by every scenario, with the spec's
-    defaults where the file has no table)."""
+    defaults where the file has no table); ``schedulable`` (the spec's fields a
+    [[schedule]] entry may change within the episode: ``measure`` reads them through
+    ``profile``)."""
 
     section: ClassVar[str]
     spec_type: ClassVar[type]
@@ -81,9 +85,14 @@ class Sensor(ABC):
     worlds: ClassVar[tuple[str, ...]] = ()
     stream: ClassVar[str]
     always: ClassVar[bool] = False
+    schedulable: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, spec: Any) -> None:
-        self.spec = spec
+    def __init__(self, spec: Any, schedule: Schedule = Schedule()) -> None:
+        self.spec, self.schedule = spec, schedule
+
+    def profile(self, name: str, t: np.ndarray) -> np.ndarray:
+        """The spec's field ``name`` at times t (N,) s, as the schedule changes it."""
+        return self.schedule.profile(self.section, name, getattr(self.spec, name), t)
 
     def check(self, duration: float, imu_rate: float, world: str) -> None:
         """Raise ValueError naming ``section.field`` where the spec cannot serve a run of

@@ -17,7 +17,9 @@ class GpsSpec:
     heading_min_speed: below this horizontal speed the heading is flagged invalid, m/s;
     latency: age of each fix when it is stamped, s; outages: (start, end) windows, s;
     outliers: faults (time s, east m, north m, up m), the position of the fix stamped
-    nearest that time is offset by (east, north, up)."""
+    nearest that time is offset by (east, north, up); multipath_dof: 0 for Gaussian fix
+    errors, else the degrees of freedom (> 2) of Student-t errors of the same sigma (a
+    multipath burst's heavy tails: the lower, the heavier)."""
 
     rate: float = 1.0
     position_sigma_h: float = 0.02
@@ -27,6 +29,7 @@ class GpsSpec:
     latency: float = 0.0
     outages: tuple[tuple[float, float], ...] = ()
     outliers: tuple[tuple[float, float, float, float], ...] = ()
+    multipath_dof: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "outages", number_rows(self.outages, 2, "gps.outages",
@@ -43,6 +46,9 @@ class GpsSpec:
         for start, end in self.outages:
             if not end > start:
                 raise ValueError(f"gps.outages: window ({start}, {end}) must have end > start")
+        if not (self.multipath_dof == 0.0 or 2.0 < self.multipath_dof <= 1000.0):
+            raise ValueError(f"gps.multipath_dof = {self.multipath_dof:g} must be 0 "
+                             "(Gaussian) or in (2, 1000]")
 
 
 def heading_from_velocity(v_n: np.ndarray, velocity_sigma: float
@@ -64,18 +70,37 @@ def nearest_fix(stamps: np.ndarray, when: float) -> int:
 
 
 def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray,
-            v_n: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
+            v_n: np.ndarray, rng: np.random.Generator,
+            profile: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Fixes from the antenna truth (lat, lon rad; h m; v_n (N, 3) m/s ENU) at the times
     t (N,) s the fixes describe. Stamps are t + latency; fixes inside an outage are NaN
-    and invalid."""
+    and invalid. profile: the sigmas and multipath_dof per fix (N,) where a schedule
+    changes them (None: the spec's, constant)."""
     from aligngym.models.earth import radii
 
     n = t.size
     R_M, R_N = radii(lat)
-    d_north = spec.position_sigma_h * rng.standard_normal(n)
-    d_east = spec.position_sigma_h * rng.standard_normal(n)
-    d_up = spec.position_sigma_v * rng.standard_normal(n)
-    v_meas = v_n + spec.velocity_sigma * rng.standard_normal((n, 3))
+    if profile is None:
+        d_north = spec.position_sigma_h * rng.standard_normal(n)
+        d_east = spec.position_sigma_h * rng.standard_normal(n)
+        d_up = spec.position_sigma_v * rng.standard_normal(n)
+        d_v = spec.velocity_sigma * rng.standard_normal((n, 3))
+        dof = np.full(n, spec.multipath_dof)
+    else:
+        d_north = profile["position_sigma_h"] * rng.standard_normal(n)
+        d_east = profile["position_sigma_h"] * rng.standard_normal(n)
+        d_up = profile["position_sigma_v"] * rng.standard_normal(n)
+        d_v = profile["velocity_sigma"][:, None] * rng.standard_normal((n, 3))
+        dof = profile["multipath_dof"]
+    if np.any(dof > 0.0):
+        # Student-t of the same sigma: a Gaussian over sqrt(chi2_dof / (dof - 2)), one
+        # draw per fix (its position and velocity share the multipath).
+        tails = dof > 0.0
+        chi2 = rng.chisquare(np.where(tails, dof, 3.0))
+        scale = np.where(tails, np.sqrt(np.where(tails, dof - 2.0, 1.0) / chi2), 1.0)
+        d_north, d_east, d_up, d_v = (d_north * scale, d_east * scale, d_up * scale,
+                                      d_v * scale[:, None])
+    v_meas = v_n + d_v
     for when, east, north, up in spec.outliers:
         i = nearest_fix(t + spec.latency, when)
         d_east[i] += east
@@ -133,7 +158,8 @@ class GnssReceiver(Sensor):
     spec_type = GpsSpec
     units = {"rate": "_hz", "position_sigma_h": "_m", "position_sigma_v": "_m",
              "velocity_sigma": "", "heading_min_speed": "", "latency": "_s",
-             "outages": "_s", "outliers": ""}
+             "outages": "_s", "outliers": "", "multipath_dof": ""}
+    schedulable = ("position_sigma_h", "position_sigma_v", "velocity_sigma", "multipath_dof")
     presets = GPS_PRESETS
     worlds = ("car", "ship-prescribed", "ship-waves")
     stream = "gps"
@@ -150,11 +176,13 @@ class GnssReceiver(Sensor):
         plane = truth.plane
         lat, lon, h = plane.to_geodetic(r_t)
         v_n = np.einsum("...ij,...j->...i", plane.C_t_n(lat, lon), v_t)
-        spec = self.spec
+        spec, profile = self.spec, None
         if ideal:
             spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
-                           velocity_sigma=0.0)
-        fixes = measure(spec, t, lat, lon, h, v_n, rng)
+                           velocity_sigma=0.0, multipath_dof=0.0)
+        elif any(self.schedule.touches(self.section, name) for name in self.schedulable):
+            profile = {name: self.profile(name, t) for name in self.schedulable}
+        fixes = measure(spec, t, lat, lon, h, v_n, rng, profile)
         return GnssFixes(**{name.removeprefix("gps_"): value
                             for name, value in fixes.items()})
 

@@ -204,16 +204,19 @@ def ideal_increments(t: np.ndarray, omega_is_s: np.ndarray, f_s: np.ndarray,
 
 
 def _triad_errors(x: np.ndarray, dt: float, spec: TriadSpec, real: TriadRealization,
-                  rng: np.random.Generator, bias_rotation: np.ndarray | None = None
-                  ) -> np.ndarray:
+                  rng: np.random.Generator, bias_rotation: np.ndarray | None = None,
+                  white_noise: np.ndarray | None = None) -> np.ndarray:
     """Increments x (M, 3) with the triad's errors applied; bias_rotation (M, 3, 3): the
     constant bias is constant in another frame and rotated into the sensor frame per
-    interval (None: constant in the sensor frame)."""
+    interval (None: constant in the sensor frame); white_noise (M,): the white-noise
+    density per interval where a schedule changes it (None: the spec's)."""
     m = x.shape[0]
     bias = real.bias if bias_rotation is None else np.einsum("mij,j->mi", bias_rotation,
                                                             real.bias)
     y = x @ real.error_matrix.T + bias * dt
-    if spec.white_noise_density > 0.0:
+    if white_noise is not None:
+        y += white_noise[:, None] * math.sqrt(dt) * rng.standard_normal((m, 3))
+    elif spec.white_noise_density > 0.0:
         y += spec.white_noise_density * math.sqrt(dt) * rng.standard_normal((m, 3))
     if spec.bias_instability > 0.0:
         sigma = gauss_markov_sigma(spec.bias_instability)
@@ -236,16 +239,21 @@ def _triad_errors(x: np.ndarray, dt: float, spec: TriadSpec, real: TriadRealizat
 
 def apply_imu_errors(dtheta: np.ndarray, dv: np.ndarray, dt: float, spec: ImuSpec,
                      realization: ImuRealization, rng: np.random.Generator,
-                     bias_rotation: np.ndarray | None = None
+                     bias_rotation: np.ndarray | None = None,
+                     white_noise: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Measured increments from ideal ones (M, 3) at interval dt (s). bias_rotation
     (M, 3, 3), optional: the drawn constant biases are constant in a frame h and
     C_h^s over each interval rotates them into the sensor frame (e.g. h = the hull of a
-    rotary IMU: no modulation)."""
+    rotary IMU: no modulation). white_noise: the gyro's and the accelerometer's
+    white-noise density per interval (M,) where a schedule changes it (a vibration
+    burst), else None (the spec's)."""
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0 s, got {dt}")
-    return (_triad_errors(dtheta, dt, spec.gyro, realization.gyro, rng, bias_rotation),
-            _triad_errors(dv, dt, spec.accel, realization.accel, rng, bias_rotation))
+    return (_triad_errors(dtheta, dt, spec.gyro, realization.gyro, rng, bias_rotation,
+                          white_noise[0]),
+            _triad_errors(dv, dt, spec.accel, realization.accel, rng, bias_rotation,
+                          white_noise[1]))
 
 
 # Paper presets: exactly the terms each paper states (SPEC section 4; noise per section 2:

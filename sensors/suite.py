@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 import aligngym.sensors as _package
+from aligngym.models.schedule import Schedule
 from aligngym.sensors.base import SENSORS, Sensor, SensorRecord, SensorTruth
 
 
@@ -34,9 +35,10 @@ class SensorSuite:
         self.sensors = sensors
 
     @classmethod
-    def of(cls, specs: Mapping[str, object]) -> "SensorSuite":
-        """The suite of a scenario's sensor specs (section -> spec)."""
-        return cls([SENSORS[section](spec) for section, spec in specs.items()])
+    def of(cls, specs: Mapping[str, object], schedule: Schedule = Schedule()
+           ) -> "SensorSuite":
+        """The suite of a scenario's sensor specs (section -> spec) under its schedule."""
+        return cls([SENSORS[section](spec, schedule) for section, spec in specs.items()])
 
     def measure(self, truth: SensorTruth, rng: Callable[[str], np.random.Generator],
                 ideal: bool) -> dict[str, SensorRecord]:
