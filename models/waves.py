@@ -14,6 +14,7 @@ makes the truth and the increments from them.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -182,18 +183,23 @@ class WaveShipWorld:
     a hull turns smoothly, and its piecewise-constant rates would read as coning."""
 
     def __init__(self, motion: WaveShipMotion, rng: np.random.Generator,
-                 timestep: float = WAVE_TIMESTEP, force_period: int = 1) -> None:
+                 timestep: float = WAVE_TIMESTEP, force_period: int = 1,
+                 sea_state: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         """timestep: MuJoCo step, s (several per IMU sample keep the discrete rotation
         smooth for the strapdown's coning term); force_period: steps between updates of
         the hydrodynamic wrench (held in between). Every step by default: a wrench held
         over 10 ms steps the acceleration at the IMU's own rate, which a strapdown's
-        sculling term rectifies (0.63 mm/s over 120 s, against 0.005 mm/s)."""
+        sculling term rectifies (0.63 mm/s over 120 s, against 0.005 mm/s). sea_state:
+        the significant wave height (m) at times t (N,) s where it changes within the run
+        (a building or calming sea: every component's amplitude scales with it, the
+        spectrum's shape kept); None: motion.significant_wave_height throughout."""
         import mujoco
         if motion.indexer is not None and abs(motion.indexer.servo_step - timestep) > 1e-12:
             raise ValueError(f"indexer.servo_step = {motion.indexer.servo_step:g} s: the "
                              f"wave-driven hull's servo steps with the physics, {timestep:g} s")
         self.motion = motion
         self.force_period = force_period
+        self._sea_state = sea_state
         # The rendered sea: a few peak wavelengths around the hull, crests to 1.2 Hs.
         wavelength = 9.81 * motion.peak_period ** 2 / (2 * math.pi)
         patch = (max(3.0 * max(motion.hull_size), 2.0 * wavelength),
@@ -251,7 +257,14 @@ class WaveShipWorld:
         along = x * self._direction[0] + y * self._direction[1]
         s = np.linspace(along.min(), along.max(), 1024)
         profile = np.cos(np.outer(s, k) - w * t + phase) @ a
-        return np.interp(along, s, profile)
+        return np.interp(along, s, profile) * self._sea_scale(np.array([t]))[0]
+
+    def _sea_scale(self, t: np.ndarray) -> np.ndarray:
+        """The waves' amplitude at times t (N,) s relative to the spectrum's (1 without a
+        changing sea state)."""
+        if self._sea_state is None:
+            return np.ones(t.shape)
+        return self._sea_state(t) / self.motion.significant_wave_height
 
     def wave_at(self, t: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Elevation (m) and slope (dη/dE, dη/dN) of the sea at plane point xy (2,) m,
@@ -291,6 +304,9 @@ class WaveShipWorld:
         # The sea at the mooring point (the plane origin), where the centre of mass stays
         # (no horizontal wave force: it moves by micrometres), for every step at once.
         eta, slope = self.wave_at(t, np.zeros(2))
+        if self._sea_state is not None:
+            scale = self._sea_scale(t)
+            eta, slope = eta * scale, slope * scale[:, None]
         eta, slope = eta.tolist(), slope.tolist()
         for k in range(n + 1):
             for i in kinematic:  # kinematic gimbal: angle = rate t exactly

@@ -245,7 +245,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
                     if name in raw)
     present = {"gps": gps, "odometer": odometer, "encoder": encoder, **dict(sensors)}
     schedule = _schedule(raw.get("schedule", []), source,
-                         {k: v for k, v in present.items() if v is not None}, imu_spec)
+                         {k: v for k, v in present.items() if v is not None}, imu_spec,
+                         carrier, motion_obj)
     filter_table = tuple(sorted(section("filter", False).items()))
     if "gimbal_stalls" in motion:
         raise ConfigError("motion.gimbal_stalls: stalls are faults; write them in [faults] "
@@ -403,10 +404,12 @@ SCHEDULED_IMU = ("gyro_arw_deg_sqrt_h", "accel_vrw_m_s_sqrt_h", "accel_vrw_ug_sq
 """The [imu] keys a [[schedule]] entry may change (the white noise: a vibration burst)."""
 
 
-def _schedule(rows: Any, source: str, specs: dict[str, Any], imu: ImuSpec) -> Schedule:
+def _schedule(rows: Any, source: str, specs: dict[str, Any], imu: ImuSpec, world,
+              motion) -> Schedule:
     """The [[schedule]] list: per entry its time_s, ramp_s (0 if absent) and, per table it
-    changes (imu, or a sensor of the scenario with schedulable fields), the new values in
-    that table's units; each checked by the table's own spec."""
+    changes (imu, the world's [motion] where it has schedulable fields, or a sensor of the
+    scenario with schedulable fields), the new values in that table's units; each
+    checked by the table's own spec."""
     if not (isinstance(rows, list) and all(isinstance(row, dict) for row in rows)):
         raise ConfigError(f"{source}: schedule must be a list of [[schedule]] tables")
     entries = []
@@ -423,30 +426,47 @@ def _schedule(rows: Any, source: str, specs: dict[str, Any], imu: ImuSpec) -> Sc
             if not isinstance(table, dict):
                 raise ConfigError(f"{where}.{section} must be a table's keys, e.g. "
                                   f"{section}.name = value")
-            values = (_scheduled_imu(table, f"{where}.imu", imu) if section == "imu" else
-                      _scheduled_sensor(table, f"{where}.{section}", section, specs))
+            if section == "imu":
+                values = _scheduled_imu(table, f"{where}.imu", imu)
+            elif section == "motion" and world.schedulable:
+                values = _scheduled_fields(table, f"{where}.motion", "motion", motion,
+                                           world.schedulable, UNITS)
+            else:
+                values = _scheduled_sensor(table, f"{where}.{section}", section, specs,
+                                           world)
             entries.append(ScheduleEntry(timing["time"], timing.get("ramp", 0.0), section,
                                          tuple(sorted(values.items())), where))
     return Schedule(tuple(entries))
 
 
 def _scheduled_sensor(table: dict[str, Any], where: str, section: str,
-                      specs: dict[str, Any]) -> dict[str, float]:
+                      specs: dict[str, Any], world) -> dict[str, float]:
     """A schedule entry's new values (SI) for the scenario's sensor ``section``."""
     can = {name: sensor_types()[name].schedulable for name in specs
            if sensor_types()[name].schedulable}
     if section not in can:
-        raise _unknown_choice(where.rsplit(".", 1)[0] + " table", section, ["imu", *can])
-    units = sensor_units(section)
+        tables = ["imu", *(["motion"] if world.schedulable else []), *can]
+        raise _unknown_choice(where.rsplit(".", 1)[0] + " table", section, tables)
+    return _scheduled_fields(table, where, section, specs[section], can[section],
+                             sensor_units(section))
+
+
+def _scheduled_fields(table: dict[str, Any], where: str, section: str, spec: Any,
+                      schedulable: tuple[str, ...], units: dict[str, str]
+                      ) -> dict[str, float]:
+    """A schedule entry's new values (SI) of a spec's schedulable fields, checked by the
+    spec itself (its own checks, and ``check()`` where it has one)."""
     values = _to_si(table, where, units)
-    valid = sorted(name + units.get(name, "") for name in can[section])
+    valid = sorted(name + units.get(name, "") for name in schedulable)
     for name in values:
-        if name not in can[section]:
+        if name not in schedulable:
             written = name + units.get(name, "")
             raise _not_a_parameter(f"{where}.{written}", written, valid,
                                    " a schedule may change")
     try:
-        replace(specs[section], **values)
+        changed = replace(spec, **values)
+        if callable(getattr(changed, "check", None)):
+            changed.check()
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{where.rsplit('.', 1)[0]}: "
                           + _written_in(str(exc), section, units)) from None

@@ -173,12 +173,15 @@ _shared_runs: OrderedDict[tuple, WorldTruth] = OrderedDict()
 
 def motion_key(config: Scenario, any_duration: bool = False) -> tuple:
     """Everything a dynamic world's run (``dynamic_motion``) reads of config but the
-    episode's random streams (any_duration: "any" in place of the duration)."""
+    episode's random streams (any_duration: "any" in place of the duration), with the
+    schedule's changes of the motion where it has any."""
     odo, gps = config.odometer, config.gps
-    return (config.world, config.motion, config.latitude, config.longitude, config.height,
-            "any" if any_duration else config.duration, config.imu_rate,
-            None if odo is None else (odo.mounting_pitch, odo.mounting_heading),
-            None if gps is None else gps.rate)
+    key = (config.world, config.motion, config.latitude, config.longitude, config.height,
+           "any" if any_duration else config.duration, config.imu_rate,
+           None if odo is None else (odo.mounting_pitch, odo.mounting_heading),
+           None if gps is None else gps.rate)
+    changes = tuple(e for e in config.schedule.entries if e.section == "motion")
+    return key + (changes,) if changes else key
 
 
 def cached_motion(kind: str, key: tuple, compute, usable=None) -> WorldTruth:

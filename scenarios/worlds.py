@@ -57,7 +57,8 @@ class World(ABC):
     elevation deg, azimuth deg, close-up size m; ``camera`` may size it to the motion);
     ``close_up_groups`` (MuJoCo geom groups the renderer's close-up shows; None: all);
     ``look_between`` (the follow camera looks between the carrier's origin and the IMU,
-    a large hull's, rather than at the IMU)."""
+    a large hull's, rather than at the IMU); ``schedulable`` (the [motion] fields a
+    [[schedule]] entry may change within the episode, e.g. the sea state)."""
 
     name: ClassVar[str]
     motion_type: ClassVar[type]
@@ -68,6 +69,7 @@ class World(ABC):
     view: ClassVar[tuple[float, float, float, float]] = (10.0, -20.0, 40.0, 1.0)
     close_up_groups: ClassVar[tuple[int, ...] | None] = None
     look_between: ClassVar[bool] = False
+    schedulable: ClassVar[tuple[str, ...]] = ()
 
     def motion_fields(self, table: dict[str, Any]) -> tuple[dict[str, Any], bool]:
         """The [motion] table (SI, unit suffixes stripped) as motion_type's fields, and
@@ -327,6 +329,13 @@ class ShipInWaves(Dynamic):
         from aligngym.models.waves import WaveShipMotion
         return WaveShipMotion
 
+    schedulable = ("significant_wave_height",)
+
     def build(self, config, rngs, pictures=False):
         from aligngym.models.waves import WaveShipWorld
-        return WaveShipWorld(config.motion, rngs["motion"])
+        sea_state = None
+        if config.schedule.touches("motion", "significant_wave_height"):
+            base = config.motion.significant_wave_height
+            sea_state = lambda t: config.schedule.profile(  # noqa: E731
+                "motion", "significant_wave_height", base, t)
+        return WaveShipWorld(config.motion, rngs["motion"], sea_state=sea_state)
