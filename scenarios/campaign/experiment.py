@@ -222,6 +222,12 @@ class Experiment(ABC):
     reproduce``."""
     reproduce: dict | None = None
     """The claims' campaigns: {"episodes", "seed"} (``aligngym reproduce``)."""
+    requires: tuple = ()
+    """What it needs of a scenario (``campaign.requirements``: a sensor's table, a
+    strapdown IMU, a filter step on the GNSS fixes), checked by ``check``."""
+    observed: tuple[str, ...] = ("misalignment", "gyro_bias", "accel_bias")
+    """The model's state blocks (layout names) the env observes: the attitude error and
+    the sensor biases."""
 
     def __post_init__(self) -> None:
         validate_settings(type(self), self)
@@ -314,10 +320,10 @@ class Experiment(ABC):
     def attitude_sigma(self) -> np.ndarray:
         """The filter's initial 1-sigma misalignment E, N, U (3,), rad."""
 
-    @abstractmethod
     def observed_states(self, layout: StateLayout) -> np.ndarray:
-        """Indices (<= 9) of the attitude and sensor-bias states, for the env's
-        observation."""
+        """Indices (<= 9) of the attitude and sensor-bias states (``observed``), for the
+        env's observation."""
+        return layout.indices(*self.observed)
 
     def filter_options(self) -> dict[str, Any]:
         """Options of the adaptation policies (e.g. rho)."""
@@ -362,7 +368,10 @@ class Experiment(ABC):
 
     def check(self, config: ScenarioConfig) -> None:
         """One-line ConfigError for settings of the scenario the experiment cannot use
-        (called before any episode is simulated)."""
+        (called before any episode is simulated): its ``requires``; an experiment with
+        checks of its own calls this first."""
+        for requirement in self.requires:
+            requirement.check(self, config)
 
     def runnable_filters(self) -> list[str]:
         """The catalogue's filters this experiment's model can run (models and needs;

@@ -31,6 +31,7 @@ from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.atomic import save_figure
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, setting,
                                          simulate_screened)
+from aligngym.scenarios.campaign.requirements import SensorTable, StrapdownImu
 from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded
 from aligngym.scenarios.campaign.experiment import STATUS_HEADER, status_columns
 from aligngym.scenarios.campaign.claims import Claim, ms_per_epoch, rule_points
@@ -156,6 +157,7 @@ class Paper000Experiment(Experiment):
     (a diverging filter amplifies last bits without bound: not reproducible); sgkf is in
     since its warm-up (it diverged in 30 % of the coarse starts before)."""
     worlds = ("car",)
+    requires = (SensorTable("odometer"), StrapdownImu())
     state_count = 18
     observation_features = frozenset({"conditionally-linear"})
 
@@ -182,22 +184,11 @@ class Paper000Experiment(Experiment):
         return config
 
     def check(self, config: ScenarioConfig) -> None:
-        if config.odometer is None:
-            raise ConfigError(f"paper000 needs an [odometer] table; scenario {config.name!r} "
-                              "has none")
-        if config.motion.has_gimbal:
-            raise ConfigError("paper000 needs a strapdown IMU: motion.gimbal_outer_rate_deg_s "
-                              "and gimbal_inner_rate_deg_s must be 0")
+        super().check(config)
         if (not self.starts or set(self.starts) - set(STARTS)
                 or len(set(self.starts)) != len(self.starts)):
             raise ConfigError(f"starts = {self.starts}; valid: each of "
                               + ", ".join(STARTS) + " at most once")
-        if self.start_velocity not in START_VELOCITIES:
-            raise ConfigError(f"start_velocity = {self.start_velocity!r}; valid: "
-                              + ", ".join(START_VELOCITIES))
-        if self.disturbance not in DISTURBANCES:
-            raise ConfigError(f"--disturbance {self.disturbance!r}; valid: "
-                              + ", ".join(DISTURBANCES))
         motion = config.motion
         if not motion.speed > 0.0:
             raise ConfigError(f"motion.speed = {motion.speed:g} m/s: paper000's "
@@ -257,9 +248,6 @@ class Paper000Experiment(Experiment):
 
     def attitude_sigma(self):
         return np.deg2rad(self.attitude_sigma_deg)
-
-    def observed_states(self, layout):
-        return layout.indices("misalignment", "gyro_bias", "accel_bias")
 
     def nees(self, result, episodes, error_n):
         """NEES of the Euler errors, gyro drift and accelerometer bias (9 states)."""

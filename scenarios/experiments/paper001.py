@@ -29,6 +29,7 @@ from aligngym.models.earth import C_n_e, geodetic_to_ecef
 from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, setting,
                                          simulate_screened)
+from aligngym.scenarios.campaign.requirements import SensorTable, StepOnFixes, StrapdownImu
 from aligngym.scenarios.campaign.experiment import STATUS_HEADER, status_columns
 from aligngym.scenarios.campaign.claims import Claim
 from aligngym.scenarios.config import ConfigError, ScenarioConfig, SettingError
@@ -149,6 +150,7 @@ class Paper001Experiment(Experiment):
     )
     setups = {"paper": PAPER_SETUP}
     worlds = ("car",)
+    requires = (SensorTable("gps"), StrapdownImu(), StepOnFixes("GPS"))
     model_variants = ("position-velocity",)
     state_count = 15
     observation_features = frozenset({"conditionally-linear", "directions"})
@@ -192,11 +194,7 @@ class Paper001Experiment(Experiment):
         return start, start + self.outage
 
     def check(self, config: ScenarioConfig) -> None:
-        if config.gps is None:
-            raise ConfigError(f"paper001 needs a [gps] table; scenario {config.name!r} has none")
-        if config.motion.has_gimbal:
-            raise ConfigError("paper001 needs a strapdown IMU: motion.gimbal_outer_rate_deg_s "
-                              "and gimbal_inner_rate_deg_s must be 0")
+        super().check(config)
         if self.coarse not in COARSE:
             raise ConfigError(f"coarse = {self.coarse!r}; valid: " + ", ".join(COARSE))
         if self.coarse == "static" and not 0.0 < self.coarse_duration <= \
@@ -215,11 +213,6 @@ class Paper001Experiment(Experiment):
         if self.fine_duration is not None and not self.fine_duration >= self.filter_step:
             raise ConfigError(f"fine_duration = {self.fine_duration:g} s must be >= "
                               f"filter_step = {self.filter_step:g} s")
-        fix = 1.0 / config.gps.rate
-        ratio = self.filter_step / fix
-        if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
-            raise SettingError("filter_step", self.filter_step, f"= {self.filter_step:g} s "
-                               f"must be a multiple of the GPS interval {fix:g} s")
         if not (np.isfinite(self.heading_min_speed) and self.heading_min_speed >= 0.0):
             raise ConfigError(f"heading_min_speed = {self.heading_min_speed:g} m/s must be "
                               ">= 0")
@@ -277,9 +270,6 @@ class Paper001Experiment(Experiment):
 
     def attitude_sigma(self):
         return np.deg2rad(self.attitude_sigma_deg)
-
-    def observed_states(self, layout):
-        return layout.indices("misalignment", "gyro_bias", "accel_bias")
 
     def nees(self, result, episodes, error_n):
         """NEES of the 15 states against the truth (position and velocity of the IMU,

@@ -179,8 +179,7 @@ class Paper002Experiment(Experiment):
         level = self.level_error_sigma_deg * deg
         return np.array([level, level, self.tuning().euler_sigma[2]])
 
-    def observed_states(self, layout):
-        return layout.indices("euler_error", "gyro_bias", "accel_bias")
+    observed = ("euler_error", "gyro_bias", "accel_bias")
 
     def nees(self, result, episodes, error_n):
         """NEES of the Euler error, accelerometer (x, y) and gyro biases (8 states)."""

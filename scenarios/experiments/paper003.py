@@ -270,9 +270,6 @@ class Paper003Experiment(Experiment):
     def attitude_sigma(self):
         return np.deg2rad(self.attitude_sigma_deg)
 
-    def observed_states(self, layout):
-        return layout.indices("misalignment", "gyro_bias", "accel_bias")
-
     def nees(self, result, episodes, error_n):
         """NEES over attitude and biases, in the filter's frames (phi in i); attitude only,
         about the ``unmodelled_floor``, when the scenario's biases are fixed in the hull

@@ -42,6 +42,7 @@ from aligngym.models.world import gimbal_C_s_b
 from aligngym.scenarios.atomic import save_figure
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, setting,
                                          simulate_screened)
+from aligngym.scenarios.campaign.requirements import SensorTable, StepOnFixes
 from aligngym.scenarios.campaign.experiment import STATUS_HEADER, status_columns
 from aligngym.scenarios.campaign.claims import Claim
 from aligngym.scenarios.config import ConfigError, ScenarioConfig, SettingError
@@ -155,6 +156,7 @@ class Paper004Experiment(Experiment):
               "measured the other way round on these episodes"),
     )
     worlds = ("ship-prescribed", "ship-waves")
+    requires = (SensorTable("gps"), StepOnFixes("GNSS"))
     model_variants = ("st", "st-linear")
     state_count = 15
 
@@ -191,7 +193,6 @@ class Paper004Experiment(Experiment):
     def scenario_config(self) -> ScenarioConfig:
         """The scenario at this experiment's swing level (or still, on the turntable) and
         sensor biases, checked."""
-        self.check_settings()
         config = super().scenario_config()
         m = config.motion
         if m.indexer is None or config.gps is None or m.antenna_b is None:
@@ -227,21 +228,9 @@ class Paper004Experiment(Experiment):
         self.check(config)
         return config
 
-    def check_settings(self) -> None:
-        """One-line errors for settings that need no scenario."""
-        for name, valid in (("swing", SWING_LEVELS), ("misalignment", MISALIGNMENTS),
-                            ("case", CASES)):
-            if getattr(self, name) not in valid:
-                raise ConfigError(f"--{name} {getattr(self, name)!r} is unknown; valid: "
-                                  + ", ".join(valid))
-
     def check(self, config: ScenarioConfig) -> None:
-        self.check_settings()
+        super().check(config)
         fix = 1.0 / config.gps.rate
-        ratio = self.filter_step / fix
-        if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
-            raise SettingError("filter_step", self.filter_step, f"= {self.filter_step:g} s "
-                               f"must be a multiple of the GNSS interval {fix:g} s")
         if not 3.0 * fix <= self.coarse_duration < config.duration:
             raise SettingError("coarse_duration", self.coarse_duration,
                                f"= {self.coarse_duration:g} s must hold >= 3 GNSS fixes and "
@@ -307,9 +296,6 @@ class Paper004Experiment(Experiment):
         sigma = (TURNTABLE["sigma"] if self.case == "turntable"
                  else MISALIGNMENTS[self.misalignment][1])
         return np.deg2rad(sigma)
-
-    def observed_states(self, layout):
-        return layout.indices("misalignment", "gyro_bias", "accel_bias")
 
     def nees(self, result, episodes, error_n):
         """NEES of the 9 states the truth knows exactly: the misalignment (the state's phi
