@@ -61,7 +61,8 @@ class ScenarioConfig:
     """The disturbances that change within the episode ([[schedule]]: the GNSS
     receiver's sigmas and multipath, the IMU's white noise), SI."""
     """The registered sensors without a field of their own (``sensors.base``), as
-    (section, spec) pairs in the file's order: a [dvl] table, a user's sensor."""
+    (section, spec) pairs in their registration order: a [dvl] table, a user's sensor.
+    Specs are in SI (the file's _deg and _arcsec keys converted to rad)."""
     experiment: str = ""
     """The pipeline that runs on this scenario (the file's ``experiment`` key, e.g.
     "paper003"; "" for none): the only map from a scenario to its experiment."""
@@ -83,12 +84,13 @@ class ScenarioConfig:
 
     def sensor_specs(self) -> dict[str, Any]:
         """Every sensor the scenario carries besides its IMU, section -> spec: the gimbal
-        encoders always, then the odometer, the GNSS receiver and ``sensors``."""
+        encoders always, then the GNSS receiver, the odometer and ``sensors`` (the
+        order their faults are recorded in)."""
         specs: dict[str, Any] = {"encoder": self.encoder}
-        if self.odometer is not None:
-            specs["odometer"] = self.odometer
         if self.gps is not None:
             specs["gps"] = self.gps
+        if self.odometer is not None:
+            specs["odometer"] = self.odometer
         specs.update(self.sensors)
         return specs
 
@@ -209,7 +211,8 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     if world not in WORLDS:
         raise _unknown_choice("world", world, WORLDS)
     carrier = world_named(world)
-    motion = section("motion", units={**UNITS, **carrier.units})
+    motion_units = {**UNITS, **carrier.units} if carrier.units else UNITS
+    motion = section("motion", units=motion_units)
     origin, run, imu = (section(s) for s in ("origin", "run", "imu"))
     for name, table, keys in (("origin", origin, ("latitude", "longitude", "height")),
                               ("run", run, ("duration", "imu_rate"))):
@@ -226,18 +229,19 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         raise _unknown_choice("imu.bias_frame", bias_frame, BIAS_FRAMES)
     preset, imu_spec = _imu_spec(imu)
     if not carrier.carries_indexer and "indexer" in raw:
-        raise ConfigError(f"[indexer] exists on the ship worlds only, not {world}")
+        raise ConfigError(f"[indexer]: the {world} world carries no indexer; remove the "
+                          "table")
     indexer = section("indexer", False)
     if indexer:
         motion["indexer"] = _indexer(indexer)
     try:
         fields_, random_phase = carrier.motion_fields(motion)
     except UnknownMotionKey as exc:
-        written = exc.name + UNITS.get(exc.name, "")
+        written = exc.name + motion_units.get(exc.name, "")
         raise _not_a_parameter(f"motion.{written}", written, exc.valid, exc.what) from None
     except ValueError as exc:
         raise ConfigError(_as_written(str(exc))) from None
-    motion_obj = _dataclass_from(carrier.motion_type, fields_, "motion")
+    motion_obj = _dataclass_from(carrier.motion_type, fields_, "motion", motion_units)
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
     odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
     gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
@@ -381,6 +385,9 @@ def _sensor(values: dict[str, Any], presets: dict, cls, section: str,
     values = dict(values)
     preset = values.pop("preset", None)
     if preset is not None and preset not in presets:
+        if not presets:
+            raise ConfigError(f"{section}.preset = {preset!r}: [{section}] has no presets; "
+                              "give its keys")
         raise _unknown_choice(f"{section}.preset", preset, presets)
     base = {f.name: getattr(presets[preset], f.name) for f in fields(cls)} if preset else {}
     if "pulses_per_rev" in values:

@@ -63,7 +63,13 @@ class Episode:
         if self.cross_track is not None:
             out["cross_track"] = self.cross_track
         for record in (*self.measurements.values(), self.faults):
-            out.update(record.arrays() if record is not None else {})
+            arrays = record.arrays() if record is not None else {}
+            clash = sorted(set(arrays) & set(out))
+            if clash:
+                raise ValueError(f"{type(record).__name__}'s array {clash[0]!r} has the "
+                                 "name of another array of the episode; give the record "
+                                 "a PREFIX")
+            out.update(arrays)
         return out
 
     def save(self, path: str | Path) -> Path:

@@ -53,7 +53,9 @@ def cache_directory() -> Path | None:
 
 
 SIMULATION_SOURCES = ("models", "sensors", "estimators", "scenarios/experiments",
-                      "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py")
+                      "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py",
+                      "scenarios/config_keys.py", "scenarios/worlds.py",
+                      "scenarios/world_truth.py")
 """The package's code that prepares an episode: any change to it is a new bank and new
 truth entries."""
 

@@ -64,7 +64,7 @@ def prescribed_world_truth(world: type, motion, latitude: float, longitude: floa
     without random phases has one truth for every seed) and on disk (``truth_cache``,
     kind: the world's name); read-only arrays."""
     key = (motion, latitude, longitude, height, duration, imu_samples)
-    return _prescribed_cached(world.name, key, lambda: _prescribed_truth(
+    return _prescribed_cached(world.cache_kind(world.name), key, lambda: _prescribed_truth(
         world().scene(motion), latitude, longitude, height, duration, imu_samples))
 
 

@@ -9,7 +9,10 @@ discrete steps at their physics rate. A new world is one class registered with
 ``scenarios.world_truth``."""
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
+import sys
 from abc import ABC, abstractmethod
 from dataclasses import replace
 from typing import Any, ClassVar
@@ -58,7 +61,17 @@ class World(ABC):
     ``close_up_groups`` (MuJoCo geom groups the renderer's close-up shows; None: all);
     ``look_between`` (the follow camera looks between the carrier's origin and the IMU,
     a large hull's, rather than at the IMU); ``schedulable`` (the [motion] fields a
-    [[schedule]] entry may change within the episode, e.g. the sea state)."""
+    [[schedule]] entry may change within the episode, e.g. the sea state).
+
+    What a world of your own must give: a ``motion_type`` that is a frozen (hashable)
+    dataclass with the gimbal's fields (``models.world.GimbalRates``: its rates, stalls
+    and ``has_gimbal``), in SI; a prescribed world's ``scene(motion)``, a
+    ``models.world.PrescribedWorld`` whose MJCF has the body ``carrier``, the site ``imu``
+    with ``IMU_SENSORS_MJCF`` and, for GNSS, an antenna site, and whose ``sample(t)`` gives
+    the motion at every time (``StaticPlatformWorld`` samples once and repeats it: right
+    for a still world only); a dynamic world's ``build`` an object whose ``run(duration)``
+    returns a ``models.world.DiscreteRun``. Its truth is cached under a kind that carries
+    a hash of its module's source (``cache_kind``)."""
 
     name: ClassVar[str]
     motion_type: ClassVar[type]
@@ -99,16 +112,37 @@ class World(ABC):
         """MuJoCo integrates its motion (True), or it is prescribed and sampled."""
         return self.physics_rate is not None
 
+    @classmethod
+    def cache_kind(cls, kind: str) -> str:
+        """The truth-cache kind of this world's runs: ``kind`` for the package's worlds
+        (their code is in the cache's code hash), with a hash of the defining module's
+        source for any other, so that editing a user's world never serves its old
+        truth."""
+        module = sys.modules.get(cls.__module__)
+        if cls.__module__.startswith("aligngym.") or module is None:
+            return kind
+        try:
+            source = inspect.getsource(module)
+        except (OSError, TypeError):           # no source to read: never cached alike
+            source = f"{cls.__module__}.{cls.__qualname__} {id(cls)}"
+        return f"{kind}-{hashlib.sha256(source.encode()).hexdigest()[:16]}"
+
 
 WORLDS: dict[str, type[World]] = {}
 """Registered worlds by their scenario-file name (``register_world``)."""
 
 
 def register_world(cls: type[World]) -> type[World]:
-    """Register a world class under its name (a class decorator)."""
+    """Register a world class under its name (a class decorator); a name another class
+    holds is refused (the same class again, e.g. its module reloaded, replaces itself)."""
     name = getattr(cls, "name", "")
     if not (isinstance(name, str) and name):
         raise ValueError(f"world {cls.__name__} must have a name")
+    held = WORLDS.get(name)
+    if held is not None and (held.__module__, held.__qualname__) != (cls.__module__,
+                                                                      cls.__qualname__):
+        raise ValueError(f"world name {name!r} is taken by {held.__module__}."
+                         f"{held.__qualname__}")
     WORLDS[name] = cls
     return cls
 
@@ -267,10 +301,6 @@ class Dynamic(World):
     """A world MuJoCo integrates at its physics rate (its run recorded at every step)."""
 
     physics_rate = 500.0
-
-    def motion_fields(self, table):
-        return dict(table), False
-
     shared_kind: ClassVar[str] = "{name}-shared"
     """The truth-cache kind of a run every seed shares (``shared_by_seeds``)."""
 
@@ -283,9 +313,11 @@ class Dynamic(World):
 
     def truth(self, config, rngs, seed):
         if self.shared_by_seeds(config):
-            return shared_motion(self.shared_kind.format(name=self.name), config,
-                                 lambda: self.build(config, rngs), 1.0 / self.physics_rate)
-        return cached_motion(f"{self.name}-seeded", (*motion_key(config), int(seed)),
+            kind = self.cache_kind(self.shared_kind.format(name=self.name))
+            return shared_motion(kind, config, lambda: self.build(config, rngs),
+                                 1.0 / self.physics_rate)
+        return cached_motion(self.cache_kind(f"{self.name}-seeded"),
+                             (*motion_key(config), int(seed)),
                              lambda: dynamic_motion(config, self.build(config, rngs)))
 
 

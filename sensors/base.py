@@ -73,8 +73,7 @@ class Sensor(ABC):
     unit suffix in the file: "_m", "_s", "_hz", "_deg", "_deg_s", "_arcsec" or "" for
     none); ``presets`` (name -> spec, for ``preset = "..."``); ``worlds`` (the worlds that
     can carry it; empty: every world); ``stream`` (its random stream of the episode,
-    ``simulate.episode_rngs``); ``always`` (carried by every scenario, with the spec's
-    defaults where the file has no table); ``schedulable`` (the spec's fields a
+    ``simulate.episode_rngs``: a name of its own); ``schedulable`` (the spec's fields a
     [[schedule]] entry may change within the episode: ``measure`` reads them through
     ``profile``)."""
 
@@ -84,7 +83,6 @@ class Sensor(ABC):
     presets: ClassVar[dict[str, Any]] = {}
     worlds: ClassVar[tuple[str, ...]] = ()
     stream: ClassVar[str]
-    always: ClassVar[bool] = False
     schedulable: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, spec: Any, schedule: Schedule = Schedule()) -> None:
@@ -115,18 +113,38 @@ SENSORS: dict[str, type[Sensor]] = {}
 """Registered sensors by their section (``register_sensor``)."""
 
 
+RESERVED_SECTIONS = ("origin", "run", "imu", "motion", "filter", "indexer", "faults",
+                     "schedule", "name", "paper", "experiment", "world")
+"""A scenario file's own tables and keys: no sensor's section."""
+RESERVED_STREAMS = ("motion", "imu_realization", "imu_noise")
+"""The episode's random streams of the world and the IMU: no sensor's stream."""
+
+
+def _same(a: type, b: type) -> bool:
+    """The same class, or its module reloaded."""
+    return (a.__module__, a.__qualname__) == (b.__module__, b.__qualname__)
+
+
 def register_sensor(cls: type[Sensor]) -> type[Sensor]:
-    """Register a sensor class under its section (a class decorator). A section is a
-    scenario-file table: one of the file's own (origin, run, imu, motion, filter,
-    indexer, faults) or one already taken is refused."""
-    reserved = ("origin", "run", "imu", "motion", "filter", "indexer", "faults")
+    """Register a sensor class under its section (a class decorator). Refused: a section
+    that is one of the file's own tables or keys (``RESERVED_SECTIONS``) or another
+    class's; a stream of the world's or the IMU's (``RESERVED_STREAMS``) or another
+    sensor's (a sensor's draws never change another's)."""
     name = getattr(cls, "section", "")
-    if not (isinstance(name, str) and name.isidentifier()) or name in reserved:
+    if not (isinstance(name, str) and name.isidentifier()) or name in RESERVED_SECTIONS:
         raise ValueError(f"sensor section {name!r} must be a name other than "
-                         + ", ".join(reserved))
-    if SENSORS.get(name, cls) is not cls and SENSORS[name].__qualname__ != cls.__qualname__:
-        raise ValueError(f"sensor section [{name}] is taken by {SENSORS[name].__name__}")
-    if not isinstance(getattr(cls, "stream", None), str):
+                         + ", ".join(RESERVED_SECTIONS))
+    held = SENSORS.get(name)
+    if held is not None and not _same(held, cls):
+        raise ValueError(f"sensor section [{name}] is taken by {held.__module__}."
+                         f"{held.__qualname__}")
+    stream = getattr(cls, "stream", None)
+    if not isinstance(stream, str):
         raise ValueError(f"sensor {cls.__name__} must name its random stream")
+    taken = [s for s in SENSORS.values() if s.stream == stream and not _same(s, cls)]
+    if stream in RESERVED_STREAMS or taken:
+        raise ValueError(f"sensor {cls.__name__}'s stream {stream!r} is taken (by "
+                         + (taken[0].__name__ if taken else "the world or the IMU")
+                         + "); name a stream of its own")
     SENSORS[name] = cls
     return cls

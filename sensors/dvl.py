@@ -70,13 +70,25 @@ def transducer_velocity_b(truth: SensorTruth, every: int, lever_arm_b: np.ndarra
                           ) -> tuple[np.ndarray, np.ndarray]:
     """Times (P,) s and the true velocity (P, 3) m/s over the ground of the point at
     lever_arm_b (m, carrier frame, from the IMU) in the carrier frame, at every
-    ``every``-th sample of the truth: C_n^b v_n + omega_nb^b x l, the body rate from the
-    attitude's central difference (one-sided at the ends)."""
+    ``every``-th sample of the truth (uniform in time, >= 3 samples): C_n^b v_n +
+    omega_nb^b x l, the body rate from the attitude's second-order differences in the
+    body frame at the sample (central inside, one-sided at the ends)."""
     tr = truth.truth
-    k = np.arange(0, tr.t.size, every)
-    before, after = np.maximum(k - 1, 0), np.minimum(k + 1, tr.t.size - 1)
-    turn = quat_to_rotvec(quat_mul(quat_conj(tr.q_b_n[before]), tr.q_b_n[after]))
-    omega_b = turn / (tr.t[after] - tr.t[before])[:, None]
+    n, dt = tr.t.size, float(tr.t[1] - tr.t[0])
+    k = np.arange(0, n, every)
+
+    def turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """The body's rotation from sample a to sample b, in body axes at a (rad)."""
+        return quat_to_rotvec(quat_mul(quat_conj(tr.q_b_n[a]), tr.q_b_n[b]))
+    omega_b = np.empty((k.size, 3))
+    inner = (k > 0) & (k < n - 1)
+    i = k[inner]
+    omega_b[inner] = (turn(i, i + 1) - turn(i, i - 1)) / (2.0 * dt)
+    if k[0] == 0:
+        omega_b[0] = (4.0 * turn(k[:1], k[:1] + 1) - turn(k[:1], k[:1] + 2))[0] / (2.0 * dt)
+    if k[-1] == n - 1:
+        last = k[-1:]
+        omega_b[-1] = -(4.0 * turn(last, last - 1) - turn(last, last - 2))[0] / (2.0 * dt)
     v_b = quat_rotate(quat_conj(tr.q_b_n[k]), tr.v_n[k])
     return tr.t[k], v_b + np.cross(omega_b, lever_arm_b)
 
@@ -96,8 +108,8 @@ class DopplerVelocityLog(Sensor):
     def check(self, duration: float, imu_rate: float, world: str) -> None:
         ratio = imu_rate / self.spec.rate
         if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(f"dvl.rate = {self.spec.rate:g} Hz must divide the IMU rate "
-                             f"{imu_rate:g} Hz")
+            raise ValueError(f"dvl.rate = {self.spec.rate:g} Hz must divide run.imu_rate_hz "
+                             f"= {imu_rate:g} Hz")
 
     def measure(self, truth: SensorTruth, rng: np.random.Generator, ideal: bool
                 ) -> DvlVelocities:

@@ -46,14 +46,14 @@ class EncoderAngles(SensorRecord):
 
 @register_sensor
 class GimbalEncoders(Sensor):
-    """The gimbal's angle encoders ([encoder]; every scenario has them, with the default
-    20-bit spec when the file has no table)."""
+    """The gimbal's angle encoders ([encoder]; every scenario has them
+    (``ScenarioConfig.sensor_specs``), with the default 20-bit spec when the file has no
+    table)."""
 
     section = "encoder"
     spec_type = GimbalEncoderSpec
     units = {"resolution": "_arcsec", "offset_sigma": "_arcsec"}
     stream = "encoder"
-    always = True
 
     def measure(self, truth: SensorTruth, rng: np.random.Generator, ideal: bool
                 ) -> EncoderAngles:

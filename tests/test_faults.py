@@ -220,3 +220,20 @@ def test_a_long_slip_is_one_flag_and_a_stall_in_motion_is_refused(tmp_path):
         "[motion]\n", "[motion]\ngimbal_stalls = [[10.0, 1.0]]\n"))
     with pytest.raises(ConfigError, match="motion.gimbal_stalls: stalls are faults"):
         load_scenario(str(path))
+
+
+def test_the_fault_record_lists_the_gnss_faults_before_the_odometers(tmp_path):
+    """A car with both a receiver (an outage) and an odometer (a slip): the record's rows
+    are the IMU's, then the GNSS receiver's, then the odometer's, as before sensors were
+    roles."""
+    import re
+
+    from aligngym.scenarios.simulate import simulate
+    text = re.sub(r"duration_s = [0-9.]+", "duration_s = 60.0",
+                  (DATA_DIR / "ring-road-odometer.toml").read_text())
+    text = text.replace("[odometer]", "[odometer]\nslips = [[30.0, 0.3, 0.5]]")
+    path = tmp_path / "both.toml"
+    path.write_text(text + "\n[gps]\npreset = \"rtk\"\noutages_s = [[40.0, 45.0]]\n")
+    episode = simulate(load_scenario(path), seed=0)
+    assert list(episode.faults.kind) == ["gnss_outage", "odometer_slip"]
+    np.testing.assert_array_equal(episode.faults.start, [40.0, 30.0])

@@ -157,3 +157,36 @@ def test_its_keys_and_worlds_are_checked_in_one_line(pier, tmp_path):
         assert message in str(info.value) and "\n" not in str(info.value)
     with pytest.raises(ValueError, match="must have a name"):
         register_world(type("Nameless", (Pier,), {"name": ""}))
+
+
+def test_a_taken_world_name_is_refused_and_a_users_world_caches_under_its_code(tmp_path):
+    """A second class under the name "car" is refused; a world from outside the package
+    is cached under a kind that carries a hash of its module's source, so an edited world
+    never gets its old truth (the package's worlds are in the cache's code hash)."""
+    with pytest.raises(ValueError, match="world name 'car' is taken by aligngym.scenarios."
+                                         "worlds.CarOnRoad"):
+        register_world(type("Car", (Pier,), {"name": "car"}))
+    assert WORLDS["car"].cache_kind("car-seeded") == "car-seeded"
+    import importlib.util
+    import sys
+    kinds = []
+    for rate in (1.0, 2.0):
+        path = tmp_path / "my_world.py"
+        path.write_text(f"from aligngym.scenarios.worlds import StaticPlatform\n"
+                        f"class Turning(StaticPlatform):\n    name = 'turning'\n"
+                        f"    rate = {rate}\n")
+        spec = importlib.util.spec_from_file_location("my_world", path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["my_world"] = module
+        spec.loader.exec_module(module)
+        kinds.append(module.Turning.cache_kind("turning"))
+    sys.modules.pop("my_world", None)
+    assert kinds[0] != kinds[1] and all(k.startswith("turning-") for k in kinds)
+
+
+def test_a_worlds_own_motion_keys_are_named_as_written(pier, tmp_path):
+    path = tmp_path / "typo.toml"
+    path.write_text(SCENARIO.replace("deck_height_m = 40.0", "deck_hieght_m = 40.0"))
+    with pytest.raises(ConfigError, match=r"motion.deck_hieght_m is not a parameter; did "
+                                          r"you mean deck_height_m\?"):
+        load_scenario(path)

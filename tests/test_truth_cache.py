@@ -154,3 +154,26 @@ def test_the_least_recently_used_entries_go_first(tmp_path):
     truth_cache._trim(tmp_path, limit=250)
     assert sorted(p.stem for p in tmp_path.glob("[!.]*.npz")) == ["mid", "new"]
     assert writing.is_file()
+
+
+def test_the_code_hash_covers_every_module_a_simulation_runs():
+    """Every package module ``scenarios.simulate`` imports (at any depth, the sensors'
+    modules too) is in ``SIMULATION_SOURCES``, so that editing it changes the truth
+    cache's and the bank's key; only the cache itself, the file writer and the names'
+    registry are not."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_import_graph import ROOT, import_graph, modules
+    graph, files = import_graph(), modules()
+    seen, stack = set(), ["aligngym.scenarios.simulate", "aligngym.sensors.dvl"]
+    while stack:
+        name = stack.pop()
+        if name not in seen:
+            seen.add(name)
+            stack.extend(graph[name])
+    covered = [ROOT / part for part in truth_cache.SIMULATION_SOURCES]
+    outside = sorted(str(files[m].relative_to(ROOT)) for m in seen
+                     if not any(files[m] == c or c in files[m].parents for c in covered))
+    assert outside == ["scenarios/atomic.py", "scenarios/registry.py",
+                       "scenarios/truth_cache.py"]
