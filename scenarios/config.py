@@ -128,16 +128,18 @@ class ScenarioConfig:
             self.schedule.check(self.duration)
         except ValueError as exc:
             raise ConfigError(_as_written(str(exc))) from None
+        carrier = world_named(self.world)
         for sensor in self.sensor_suite().sensors:
-            if sensor.worlds and self.world not in sensor.worlds:
+            if not sensor.needs <= carrier.gives:
+                able = sorted(n for n, w in WORLDS.items() if sensor.needs <= w.gives)
                 raise ConfigError(f"[{sensor.section}]: the {self.world} world cannot carry "
-                                  f"it (only {', '.join(sensor.worlds)}); remove the table")
+                                  f"it (only {', '.join(able)}); remove the table")
             try:
                 sensor.check(self.duration, self.imu_rate, self.world)
             except ValueError as exc:
                 raise ConfigError(_written_in(str(exc), sensor.section,
                                               sensor_units(sensor.section))) from None
-        world = world_named(self.world)
+        world = carrier
         if self.gps is not None and not world.dynamic:
             ratio = self.imu_rate / self.gps.rate
             if abs(ratio - round(ratio)) > 1e-9:
@@ -243,8 +245,9 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
         raise ConfigError(_as_written(str(exc))) from None
     motion_obj = _dataclass_from(carrier.motion_type, fields_, "motion", motion_units)
     encoder = _dataclass_from(GimbalEncoderSpec, section("encoder", False), "encoder")
-    odometer = _sensor(section("odometer", False), ODOMETER_PRESETS, OdometerSpec, "odometer")
-    gps = _sensor(section("gps", False), GPS_PRESETS, GpsSpec, "gps")
+    odometer = (_sensor(section("odometer"), ODOMETER_PRESETS, OdometerSpec, "odometer")
+                if "odometer" in raw else None)
+    gps = _sensor(section("gps"), GPS_PRESETS, GpsSpec, "gps") if "gps" in raw else None
     sensors = tuple((name, _plugged_sensor(raw, name, source)) for name in plugged
                     if name in raw)
     present = {"gps": gps, "odometer": odometer, "encoder": encoder, **dict(sensors)}
@@ -379,9 +382,8 @@ def _indexer(table: dict[str, Any]) -> IndexerSpec:
 
 def _sensor(values: dict[str, Any], presets: dict, cls, section: str,
             units: dict[str, str] = UNITS):
-    """A sensor spec from a table: a preset plus overrides; None without a table."""
-    if not values:
-        return None
+    """A sensor spec from its table: a preset plus overrides (an empty table: the
+    spec's defaults)."""
     values = dict(values)
     preset = values.pop("preset", None)
     if preset is not None and preset not in presets:
@@ -401,10 +403,8 @@ def _plugged_sensor(raw: dict[str, Any], name: str, source: str):
     cls = sensor_types()[name]
     if not isinstance(raw[name], dict):
         raise ConfigError(f"{source}: [{name}] must be a table")
-    values = _to_si(raw[name], name, cls.units)
-    if not values:                      # an empty table: the spec's defaults
-        return cls.spec_type()
-    return _sensor(values, cls.presets, cls.spec_type, name, cls.units)
+    return _sensor(_to_si(raw[name], name, cls.units), cls.presets, cls.spec_type, name,
+                   cls.units)
 
 
 SCHEDULED_IMU = ("gyro_arw_deg_sqrt_h", "accel_vrw_m_s_sqrt_h", "accel_vrw_ug_sqrt_hz")

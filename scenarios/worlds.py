@@ -55,8 +55,9 @@ class World(ABC):
     ``motion_type`` (its [motion] dataclass); ``units`` (the unit suffixes of its own
     [motion] keys, beside the file's ``config.UNITS``); ``physics_rate`` (Hz, MuJoCo's fixed rate of
     a dynamic world, which the IMU rate must divide; None for a prescribed world);
-    ``carries_indexer`` (an [indexer] table may turn its IMU); ``has_antenna`` (a GNSS
-    antenna on the carrier); ``view`` (the renderer's follow camera: distance m,
+    ``carries_indexer`` (an [indexer] table may turn its IMU); ``gives`` (what its
+    carrier gives the sensors that need it, ``sensors.base.Sensor.needs``: "antenna",
+    "wheels", "hull"); ``view`` (the renderer's follow camera: distance m,
     elevation deg, azimuth deg, close-up size m; ``camera`` may size it to the motion);
     ``close_up_groups`` (MuJoCo geom groups the renderer's close-up shows; None: all);
     ``look_between`` (the follow camera looks between the carrier's origin and the IMU,
@@ -78,7 +79,7 @@ class World(ABC):
     units: ClassVar[dict[str, str]] = {}
     physics_rate: ClassVar[float | None] = None
     carries_indexer: ClassVar[bool] = False
-    has_antenna: ClassVar[bool] = True
+    gives: ClassVar[frozenset[str]] = frozenset()
     view: ClassVar[tuple[float, float, float, float]] = (10.0, -20.0, 40.0, 1.0)
     close_up_groups: ClassVar[tuple[int, ...] | None] = None
     look_between: ClassVar[bool] = False
@@ -210,6 +211,7 @@ class SwayingShip(Prescribed):
     file gives them."""
 
     name = "ship-prescribed"
+    gives = frozenset({"antenna", "hull"})
     carries_indexer = True
     look_between = True
 
@@ -266,7 +268,6 @@ class StaticPlatform(Prescribed):
     """A level slab at a constant attitude (paper 002's static base); no antenna."""
 
     name = "static-platform"
-    has_antenna = False
     view = (2.8, -30.0, 135.0, 0.9)
     KEYS = {"yaw": "yaw_mean", "pitch": "pitch", "roll": "roll"}
 
@@ -327,6 +328,7 @@ class CarOnRoad(Dynamic):
     heightfield is drawn from the episode's motion stream."""
 
     name = "car"
+    gives = frozenset({"antenna", "wheels"})
     shared_kind = "car-smooth-road"
     view = (10.0, -20.0, 40.0, 1.1)
     close_up_groups = (0, 0, 1, 0, 0, 0)     # the IMU sits inside the body: the instruments
@@ -352,6 +354,7 @@ class ShipInWaves(Dynamic):
     """The hull floating in a random sea drawn from the episode's motion stream."""
 
     name = "ship-waves"
+    gives = frozenset({"antenna", "hull"})
     carries_indexer = True
     look_between = True
     camera = SwayingShip.camera

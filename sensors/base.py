@@ -71,8 +71,9 @@ class Sensor(ABC):
     Class attributes: ``section`` (its scenario-file table and the key of its record in
     ``Episode.measurements``); ``spec_type`` (the table's dataclass); ``units`` (each key's
     unit suffix in the file: "_m", "_s", "_hz", "_deg", "_deg_s", "_arcsec" or "" for
-    none); ``presets`` (name -> spec, for ``preset = "..."``); ``worlds`` (the worlds that
-    can carry it; empty: every world); ``stream`` (its random stream of the episode,
+    none); ``presets`` (name -> spec, for ``preset = "..."``); ``needs`` (what the world
+    must give it: "antenna" (a GNSS antenna on the carrier), "wheels" (a car's), "hull"
+    (a hull under water); a world declares what it ``gives``); ``stream`` (its random stream of the episode,
     ``simulate.episode_rngs``: a name of its own); ``schedulable`` (the spec's fields a
     [[schedule]] entry may change within the episode: ``measure`` reads them through
     ``profile``)."""
@@ -81,7 +82,7 @@ class Sensor(ABC):
     spec_type: ClassVar[type]
     units: ClassVar[dict[str, str]] = {}
     presets: ClassVar[dict[str, Any]] = {}
-    worlds: ClassVar[tuple[str, ...]] = ()
+    needs: ClassVar[frozenset[str]] = frozenset()
     stream: ClassVar[str]
     schedulable: ClassVar[tuple[str, ...]] = ()
 

@@ -102,7 +102,7 @@ class DopplerVelocityLog(Sensor):
     units = {"rate": "_hz", "velocity_sigma": "", "bias_sigma": "",
              "scale_factor_sigma": "", "dropout_probability": "", "dropouts": "_s",
              "lever_arm_b": "_m"}
-    worlds = ("ship-prescribed", "ship-waves")
+    needs = frozenset({"hull"})
     stream = "dvl"
 
     def check(self, duration: float, imu_rate: float, world: str) -> None:

@@ -161,7 +161,7 @@ class GnssReceiver(Sensor):
              "outages": "_s", "outliers": "", "multipath_dof": ""}
     schedulable = ("position_sigma_h", "position_sigma_v", "velocity_sigma", "multipath_dof")
     presets = GPS_PRESETS
-    worlds = ("car", "ship-prescribed", "ship-waves")
+    needs = frozenset({"antenna"})
     stream = "gps"
 
     def check(self, duration: float, imu_rate: float, world: str) -> None:

@@ -99,7 +99,7 @@ class WheelOdometer(Sensor):
              "scale_error_sigma": "", "mounting_pitch": "_deg", "mounting_heading": "_deg",
              "slips": ""}
     presets = ODOMETER_PRESETS
-    worlds = ("car",)
+    needs = frozenset({"wheels"})
     stream = "odometer"
 
     def check(self, duration: float, imu_rate: float, world: str) -> None:

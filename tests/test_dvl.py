@@ -253,10 +253,12 @@ def test_a_sensors_stream_is_new_for_its_name_and_the_seed():
     assert not np.array_equal(episode_rngs(8)["dvl"].standard_normal(4), draws["dvl"])
 
 
-def test_an_empty_table_is_the_default_dvl(tmp_path):
-    config = load_scenario(with_table(tmp_path, "[dvl]\n"))
-    assert dict(config.sensors) == {"dvl": DvlSpec()}
-    assert list(config.sensor_specs()) == ["encoder", "dvl"]
+def test_an_empty_table_is_the_default_sensor(tmp_path):
+    """An empty [dvl] or [gps] table carries the sensor with its spec's defaults."""
+    from aligngym.sensors.gps import GpsSpec
+    config = load_scenario(with_table(tmp_path, "[dvl]\n\n[gps]\n"))
+    assert dict(config.sensors) == {"dvl": DvlSpec()} and config.gps == GpsSpec()
+    assert list(config.sensor_specs()) == ["encoder", "gps", "dvl"]
 
 
 def moving_truth(seconds: float = 10.0, rate: float = 100.0) -> SensorTruth:

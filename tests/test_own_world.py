@@ -55,7 +55,6 @@ class Pier(Prescribed):
     name = "test-pier"
     motion_type = DeckMotion
     units = {"deck_height": "_m"}
-    has_antenna = False
     view = (4.0, -25.0, 135.0, 0.9)
 
     def motion_fields(self, table):
