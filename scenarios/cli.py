@@ -27,6 +27,11 @@ def build_parser(bench_details: bool = False, experiment: type | None = None
     (imported only when bench names one)."""
     parser = Parser(prog="aligngym", description="SINS initial-alignment scenario testbed")
     parser.add_argument("--version", action=Version)
+    parser.add_argument("--plugin", action="append", metavar="MODULE", default=[],
+                        help="import MODULE (a module name, or a .py file) before the "
+                        "command, so the sensors, worlds, experiments and filters it "
+                        "registers are known; repeatable, before the command; the "
+                        "environment variable ALIGNGYM_PLUGINS adds a comma-separated list")
     sub = parser.add_subparsers(dest="command", parser_class=Parser, metavar="COMMAND")
     for name, command in COMMANDS.items():
         if name == "bench":
@@ -50,8 +55,57 @@ def _interrupted(args: argparse.Namespace) -> str:
             f"continue with: {' '.join(again)}")
 
 
+def plugin_names(argv: Sequence[str]) -> list[str]:
+    """The plugins to import: ALIGNGYM_PLUGINS (comma-separated), then each --plugin
+    MODULE (or --plugin=MODULE) before the command."""
+    import os
+    names = [n.strip() for n in os.environ.get("ALIGNGYM_PLUGINS", "").split(",")
+             if n.strip()]
+    words = list(argv)
+    for i, word in enumerate(words):
+        if word in COMMANDS:                       # the command: options before it only
+            break
+        if word == "--plugin" and i + 1 < len(words):
+            names.append(words[i + 1])
+        elif word.startswith("--plugin="):
+            names.append(word.split("=", 1)[1])
+    return names
+
+
+def load_plugin(name: str) -> None:
+    """Import a plugin: a module name (found from the working directory too) or a .py
+    file's path; ValueError naming it if it cannot be imported."""
+    import importlib
+    import importlib.util
+    import os
+    from pathlib import Path
+
+    try:
+        if name.endswith(".py"):
+            path = Path(name)
+            spec = importlib.util.spec_from_file_location(path.stem, path)
+            if spec is None or not path.is_file():
+                raise FileNotFoundError(f"no file {name}")
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[path.stem] = module
+            spec.loader.exec_module(module)
+        else:
+            if os.getcwd() not in sys.path:
+                sys.path.append(os.getcwd())
+            importlib.import_module(name)
+    except Exception as exc:      # any failure of the user's module: one line, its cause
+        raise ValueError(f"--plugin {name}: cannot import it: {type(exc).__name__}: "
+                         f"{exc}") from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        for name in plugin_names(argv):
+            load_plugin(name)
+    except ValueError as exc:
+        print(f"aligngym: error: {exc}", file=sys.stderr)
+        return 2
     parser = build_parser(bench_details="bench" in argv and ("-h" in argv or "--help" in argv),
                           experiment=bench.named_experiment(argv))
     args, unknown = parser.parse_known_args(argv)

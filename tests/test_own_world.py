@@ -189,3 +189,51 @@ def test_a_worlds_own_motion_keys_are_named_as_written(pier, tmp_path):
     with pytest.raises(ConfigError, match=r"motion.deck_hieght_m is not a parameter; did "
                                           r"you mean deck_height_m\?"):
         load_scenario(path)
+
+
+PLUGIN = '''
+from dataclasses import dataclass
+from aligngym.scenarios.experiments import register_experiment
+from aligngym.scenarios.experiments.paper002 import Paper002Experiment
+from aligngym.scenarios.worlds import StaticPlatform, register_world
+
+
+@register_world
+class PluginSlab(StaticPlatform):
+    name = "plugin-slab"
+
+
+@dataclass(frozen=True)
+class PluginStatic(Paper002Experiment):
+    worlds = ("plugin-slab",)
+    fine_duration: float = 60.0
+    azimuth_error_deg: float = 20.0
+    default_filters: tuple[str, ...] = ("ekf",)
+    default_episodes = 2
+
+
+register_experiment("plugin-static", PluginStatic)
+'''
+
+
+def test_the_command_line_imports_a_users_plugin(tmp_path, monkeypatch, capsys):
+    """``aligngym --plugin FILE.py bench ...``: the world and the experiment the file
+    registers run from the command line; a plugin that cannot be imported is one line."""
+    import sys
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "my_plugin.py").write_text(PLUGIN)
+    (tmp_path / "slab.toml").write_text(SCENARIO.replace('"pier-static"', '"plugin-static"')
+                                        .replace('"test-pier"', '"plugin-slab"')
+                                        .replace("deck_height_m = 40.0\n", ""))
+    try:
+        assert main(["--plugin", "my_plugin.py", "bench", "plugin-static", "--scenario",
+                     "slab.toml", "--workers", "1", "--no-figures"]) == 0
+        assert "2 runs" in capsys.readouterr().out
+    finally:
+        WORLDS.pop("plugin-slab", None)
+        registry._REGISTERED.pop("plugin-static", None)
+        sys.modules.pop("my_plugin", None)
+    assert main(["--plugin", "no_such_plugin_module", "bench", "paper002"]) == 2
+    assert ("aligngym: error: --plugin no_such_plugin_module: cannot import it: "
+            "ModuleNotFoundError: No module named 'no_such_plugin_module'"
+            in capsys.readouterr().err)
