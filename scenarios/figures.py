@@ -71,12 +71,25 @@ def _twin(twins: dict | None, item) -> str:
 # Drawing
 # --------------------------------------------------------------------------------------
 
+FIGURE_RC = {"axes.titley": 1.0}
+"""matplotlib settings the figures are made with: titles at a fixed height above their
+axes (where the automatic placement puts them, as no axis has ticks on top), which
+spares the title placement's layout pass at every draw (15 % of the drawing time)."""
+
+
 def pyplot():
     """matplotlib.pyplot on the Agg backend (files only, headless)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+def subplots(*args: Any, **kwargs: Any):
+    """``pyplot.subplots`` under ``FIGURE_RC`` (the caller's own settings untouched)."""
+    plt = pyplot()
+    with plt.rc_context(FIGURE_RC):
+        return plt.subplots(*args, **kwargs)
 
 
 def _stride(size: int) -> int:
@@ -106,7 +119,7 @@ def plot_error_bands(bands: list[ErrorBand], window: float, title: str, path: Pa
     ``window`` s). Median line in each filter's colour and dash, 5-95 % shade, mean
     +-3 sigma dotted, diverged episodes faint with an x at their end."""
     plt = pyplot()
-    fig, axes = plt.subplots(3, 2, figsize=(13, 9.5), sharex="col",
+    fig, axes = subplots(3, 2, figsize=(13, 9.5), sharex="col",
                              gridspec_kw={"width_ratios": (1.5, 1)})
     t_end = max(float(b.t[-1]) for b in bands)
     tail_start = max(0.0, t_end - window) if window < t_end else 0.5 * t_end
@@ -182,7 +195,7 @@ def plot_final_errors(result, start: str, path: Path, twins: dict | None = None)
     off it. A legend explains each marker drawn."""
     plt = pyplot()
     runs = [r for r in result.runs if r.start == start]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.8))
+    fig, axes = subplots(1, 3, figsize=(13, 4.8))
     positions = np.arange(1, len(runs) + 1)
     drawn = {"flier": False, "x": False, "off": False}
     for axis, ax in enumerate(axes):
@@ -248,7 +261,7 @@ def plot_heading_convergence(cdfs: list[ConvergenceCdf], threshold_arcmin: float
     heading has converged by time t (a step at each episode's convergence time); the
     curve ends below 100 % by the diverged and the never converged episodes."""
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(12, 5))
+    fig, ax = subplots(figsize=(12, 5))
     for i, cdf in enumerate(cdfs):
         times = np.concatenate([[0.0], cdf.times, [cdf.t_end]])
         percent = 100.0 * np.concatenate([[0.0], np.arange(1, cdf.times.size + 1),
@@ -321,7 +334,7 @@ def plot_nees(curves: list[NeesCurve], dof: int, start: str, path: Path,
     plt = pyplot()
     from matplotlib.patches import Patch
     from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
-    fig, axes = plt.subplots(2, 1, figsize=(13, 8), sharex=True)
+    fig, axes = subplots(2, 1, figsize=(13, 8), sharex=True)
     counts = [c.episodes for c in curves if c.episodes]
     common = max(set(counts), key=counts.count) if counts else 0
     t_end = max(float(c.t[-1]) for c in curves)
