@@ -128,7 +128,10 @@ class ScenarioConfig:
             self.schedule.check(self.duration)
         except ValueError as exc:
             raise ConfigError(_as_written(str(exc))) from None
-        carrier = world_named(self.world)
+        try:
+            carrier = world_named(self.world)
+        except ValueError as exc:              # a world registered once, no longer
+            raise ConfigError(str(exc)) from None
         for sensor in self.sensor_suite().sensors:
             if not sensor.needs <= carrier.gives:
                 able = sorted(n for n, w in WORLDS.items() if sensor.needs <= w.gives)

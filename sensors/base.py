@@ -66,7 +66,8 @@ class FaultLog(SensorRecord):
 
 
 class Sensor(ABC):
-    """One sensor of a scenario, built from its spec (the section's dataclass).
+    """One sensor of a scenario, built from its spec (the section's dataclass, in SI:
+    the file's _deg and _arcsec keys arrive in rad, _hz in Hz, _m in m, _s in s).
 
     Class attributes: ``section`` (its scenario-file table and the key of its record in
     ``Episode.measurements``); ``spec_type`` (the table's dataclass); ``units`` (each key's
