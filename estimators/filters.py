@@ -134,9 +134,10 @@ class GaussianFilter:
     def predict(self, transition: Transition) -> None:
         """Propagate through the process map (its noise Q is added at the update, where
         the adaptation policy may fade it)."""
-        if self._pending is not None:  # no update since the last predict
-            self.P = self._pending[0] + self._pending[1]
         live = self.live
+        if self._pending is not None:  # no update since the last predict: P_pred + Q,
+            self.P = np.where(live[:, None, None],    # frozen where diverged
+                              self._pending[0] + self._pending[1], self.P)
         # Diverged (frozen) episodes go through the rule at a harmless point, so that
         # their state cannot turn the batch's linear algebra into NaN.
         x_in, P_in = self._harmless(self.x, self.P)

@@ -98,3 +98,24 @@ def test_a_diverged_episode_goes_through_the_rule_at_zero_and_the_identity():
     x, P = f._harmless(f.x, f.P)
     np.testing.assert_array_equal(x, np.vstack([X0[:3], np.zeros((1, N))]))
     np.testing.assert_array_equal(P, np.concatenate([P0[:3], np.eye(N)[None]]))
+
+
+def test_a_diverged_episode_stays_frozen_through_predictions_without_an_update():
+    """Two predictions in a row (no update between): the live episode's P is
+    Phi (Phi P Phi^T + Q) Phi^T + Q by hand; the episode diverged at reset (P = -I) keeps
+    its P through both and the update."""
+    f = make_filter("kf")
+    f.reset(np.ones((2, 2)), np.stack([np.eye(2), -np.eye(2)]))
+    assert list(f.health.diverged) == [False, True]
+    step = Transition(noise=0.1 * np.tile(np.eye(2), (2, 1, 1)),
+                      matrix=2.0 * np.tile(np.eye(2), (2, 1, 1)))
+    f.predict(step)
+    f.predict(step)
+    f.update(Observation(noise=np.ones((2, 1, 1)), matrix=np.ones((2, 1, 2)),
+                         z=np.ones((2, 1)), t=1.0))
+    np.testing.assert_array_equal(f.P[1], -np.eye(2))
+    P_pred = 4.0 * (4.0 * np.eye(2) + 0.1 * np.eye(2)) + 0.1 * np.eye(2)   # 16.5 I
+    S = np.ones((1, 2)) @ P_pred @ np.ones((2, 1)) + 1.0
+    K = P_pred @ np.ones((2, 1)) / S
+    expected = (np.eye(2) - K @ np.ones((1, 2))) @ P_pred
+    np.testing.assert_allclose(f.P[0], expected, rtol=1e-12)
