@@ -131,26 +131,26 @@ EQUIVALENT.update({
         "89: used = live[:, None] * valid",
         "91: S = identity_where_not(used[:, :, None] * used[:, None, :], S)",
         "95: return np.where((dof > 0) * live, nis, np.nan), dof",
-        "172: valid = observation.valid() * self.live[:, None]",
-        "194: finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) * np.all(np.isfinite("
+        "173: valid = observation.valid() * self.live[:, None]",
+        "195: finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) * np.all(np.isfinite("
         "self.x), -1)",
-        "222: valid = valid * ~adjustment.rejected",
-        "245: cross_valid = valid[:, :, None] * valid[:, None, :]",
-        "286: P_ok = positive_definite(P_new) * np.all(np.isfinite(x_new), axis=-1)",
-        "301: bad = ~ok * live",
-        '305: self.health.flag(bad * ~finite, t, "predicted covariance NaN/inf")',
-        "306: fix = bad * finite",
-        "311: still = ~positive_definite(repaired) * fix")},
-    **{_F + f"281: I_KH[..., np.arange(I_KH.shape[{a}]), np.arange(I_KH.shape[{b}])] += 1.0":
+        "223: valid = valid * ~adjustment.rejected",
+        "246: cross_valid = valid[:, :, None] * valid[:, None, :]",
+        "287: P_ok = positive_definite(P_new) * np.all(np.isfinite(x_new), axis=-1)",
+        "302: bad = ~ok * live",
+        '306: self.health.flag(bad * ~finite, t, "predicted covariance NaN/inf")',
+        "307: fix = bad * finite",
+        "312: still = ~positive_definite(repaired) * fix")},
+    **{_F + f"282: I_KH[..., np.arange(I_KH.shape[{a}]), np.arange(I_KH.shape[{b}])] += 1.0":
        _SQ for i in ("+1", "~1", "1", "- 2") for a, b in ((i, "-1"), ("-1", i))},
     **{_F + f"{line}: {text.format(i)}": _AX for i in ("+1", "1") for line, text in (
         (94, "dof = valid.sum({})"),
-        (194, "finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) & np.all(np.isfinite("
+        (195, "finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) & np.all(np.isfinite("
               "self.x), {})"),
-        (220, "silent = ~valid.any({})[:, None, None]  # no measurement: no adaptation either"),
-        (286, "P_ok = positive_definite(P_new) & np.all(np.isfinite(x_new), axis={})"))},
-    **{_F + f"173: z = np.where(valid, observation.z, {v})": _MISSING for v in ("1.0", "-1.0")},
-    **{_F + f"268: S_inv_HP = np.where(solved[:, None, None], S_inv_HP, {v})": _UNSOLVED
+        (221, "silent = ~valid.any({})[:, None, None]  # no measurement: no adaptation either"),
+        (287, "P_ok = positive_definite(P_new) & np.all(np.isfinite(x_new), axis={})"))},
+    **{_F + f"174: z = np.where(valid, observation.z, {v})": _MISSING for v in ("1.0", "-1.0")},
+    **{_F + f"269: S_inv_HP = np.where(solved[:, None, None], S_inv_HP, {v})": _UNSOLVED
        for v in ("1.0", "-1.0")},
     _F + "91: S = identity_where_not(used[:, :, None] << used[:, None, :], S)":
         "bool << bool is nonzero where the left operand is True: the unused components' "
@@ -162,11 +162,11 @@ EQUIVALENT.update({
         "dof counts valid components: never negative, so != 0 is > 0",
     _F + '93: nis = np.einsum("bi,bi->b", e, solve_each(S, e[..., None])[0][..., -1])':
         "the solve of (B, m, 1) has a last axis of length 1: index -1 is index 0",
-    _F + "311: still = ~positive_definite(repaired) ** fix":
+    _F + "312: still = ~positive_definite(repaired) ** fix":
         "~(a ** b) is the integer -1 exactly where a is False and b True, -2 elsewhere; "
         "FilterHealth.flag ands it with a boolean array (-1 & 1 = 1, -2 & 1 = 0): the "
         "original mask",
-    _F + "207: H = np.swapaxes(np.linalg.pinv(P_pred, hermitian=False) @ P_xz, -1, -2)":
+    _F + "208: H = np.swapaxes(np.linalg.pinv(P_pred, hermitian=False) @ P_xz, -1, -2)":
         "P_pred is symmetric (symmetric() above; a repaired one to rounding): its SVD is "
         "its eigendecomposition up to signs, so both give the same pseudo-inverse in exact "
         "arithmetic, with the same cut-off (|eigenvalues| are its singular values); in "
@@ -252,7 +252,7 @@ _ANNOTATION = ("an annotation: under `from __future__ import annotations` it is 
 EQUIVALENT_PATTERNS: list[tuple[str, str]] = [
     (r"^estimators/rules\.py:(78|138|186|187): .*(float|np\.ndarray) "
      r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) (np\.ndarray|None)", _ANNOTATION),
-    (r"^estimators/filters\.py:(158|272): .*(PolicyTuning|np\.ndarray) "
+    (r"^estimators/filters\.py:(159|273): .*(PolicyTuning|np\.ndarray) "
      r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) None( = None|,)", _ANNOTATION),
 ]
 """Survivors equivalent by the shape of their key (regular expression, reason)."""
