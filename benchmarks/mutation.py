@@ -363,12 +363,18 @@ EQUIVALENT.update({
     _AD + '293: return frozenset({"selection-H"} ^ ({"unit-selection-H", "axes"}':
         "the two sets are disjoint: their symmetric difference is their union",
 })
-# adaptation.py's survivors not killed and not equivalent (5, issue 41): "399: ... a < k1",
-# "410: ... d < c1", "423: ... w != 0.0", "487: ... w != 0.0" and "539: ... w_obs != 0.0"
-# differ from the code only where k1 (c1) is infinite, which the checks accept but where
-# the IGG-III weights (the adaptive factor) are already NaN beyond k0 (c0): no correct
-# test can tell them apart until an infinite threshold is refused (then they are
-# equivalent: at |v| = k1 the middle branch is 0 exactly, and the weights lie in [0, 1]).
+# adaptation.py's last five survivors ("399: ... a < k1", "410: ... d < c1", "423: ... w
+# != 0.0", "487: ... w != 0.0", "539: ... w_obs != 0.0") differed from the code only where
+# k1 (c1) was infinite, which made the weights NaN: refused at construction since.
+_FINITE = ("the thresholds k1 and c1 are finite (an infinite one is refused at "
+           "construction: it made the weights NaN): at a = k1 (d = c1) the middle branch "
+           "is 0 exactly, and the weights are never NaN, so w != 0 is w > 0 (never negative)")
+EQUIVALENT.update({_AD + key: _FINITE for key in (
+    "399: return np.where(a <= k0, 1.0, np.where(a < k1, middle, 0.0))",
+    "410: alpha = np.where(d <= c0, 1.0, np.where(d < c1, middle, 0.0))",
+    "423: d = 1.0 / np.sqrt(np.where(w != 0.0, w, 1.0))",
+    "487: kept = ctx.valid & (w != 0.0)       # a rejected outlier says nothing of the state",
+    "539: measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] & (w_obs != 0.0)")})
 _ANNOTATION = ("an annotation: under `from __future__ import annotations` it is a string, "
                "never evaluated")
 EQUIVALENT_PATTERNS: list[tuple[str, str]] = [

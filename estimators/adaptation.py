@@ -222,8 +222,8 @@ class SingleFadingFactor(InnovationFading):
         if outlier_probability is not None and not 0.5 < outlier_probability < 1.0:
             raise ValueError(f"outlier_probability must be in (0.5, 1), got "
                              f"{outlier_probability}")
-        if outlier_run < 1:
-            raise ValueError(f"outlier_run must be >= 1 epoch, got {outlier_run}")
+        if not (isinstance(outlier_run, int) and outlier_run >= 1):
+            raise ValueError(f"outlier_run must be an integer >= 1 epoch, got {outlier_run!r}")
         self.beta, self.derivative_free = beta, derivative_free
         self.warm_up, self.in_motion_only = warm_up, in_motion_only
         self.outlier_probability, self.outlier_run = outlier_probability, outlier_run
@@ -433,10 +433,10 @@ class _RobustObservations(AdaptationPolicy):
     outage that left it overconfident)."""
 
     def __init__(self, k0: float = 2.0, k1: float = 6.0, max_rejections: int = 3) -> None:
-        if not 0.0 < k0 < k1:
-            raise ValueError(f"need 0 < k0 < k1, got k0={k0}, k1={k1}")
-        if max_rejections < 0:
-            raise ValueError(f"max_rejections must be >= 0, got {max_rejections}")
+        if not 0.0 < k0 < k1 < np.inf:
+            raise ValueError(f"need 0 < k0 < k1 < inf, got k0={k0}, k1={k1}")
+        if not isinstance(max_rejections, int) or max_rejections < 0:
+            raise ValueError(f"max_rejections must be an integer >= 0, got {max_rejections!r}")
         self.k0, self.k1, self.max_rejections = k0, k1, max_rejections
         self._streak: np.ndarray | None = None
 
@@ -476,8 +476,8 @@ class RobustAdaptive(_RobustObservations):
     def __init__(self, c0: float = 1.0, c1: float = 3.0, k0: float = 2.0,
                  k1: float = 6.0, max_rejections: int = 3) -> None:
         super().__init__(k0, k1, max_rejections)
-        if not 0.0 < c0 < c1:
-            raise ValueError(f"need 0 < c0 < c1, got c0={c0}, c1={c1}")
+        if not 0.0 < c0 < c1 < np.inf:
+            raise ValueError(f"need 0 < c0 < c1 < inf, got c0={c0}, c1={c1}")
         self.c0, self.c1 = c0, c1
 
     def adapt(self, ctx):

@@ -295,7 +295,7 @@ def test_selective_weights_need_directions():
     (lambda: RobustAdaptive(k0=3.0, k1=3.0), "0 < k0 < k1"),
     (lambda: RobustAdaptive(k0=4.0, k1=3.0), "0 < k0 < k1"),
     (lambda: SelectiveWeights(k0=6.0, k1=2.0), "0 < k0 < k1"),
-    (lambda: RobustAdaptive(max_rejections=-1), "max_rejections must be >= 0"),
+    (lambda: RobustAdaptive(max_rejections=-1), "max_rejections must be an integer >= 0"),
     (lambda: RobustAdaptive(c0=0.0), "0 < c0 < c1"),
     (lambda: RobustAdaptive(c0=-0.5, c1=3.0), "0 < c0 < c1"),
     (lambda: RobustAdaptive(c0=3.0, c1=3.0), "0 < c0 < c1"),
@@ -316,7 +316,7 @@ def test_selective_weights_need_directions():
     (lambda: SingleFadingFactor(outlier_probability=0.5), "outlier_probability"),
     (lambda: SingleFadingFactor(outlier_probability=0.3), "outlier_probability"),
     (lambda: SingleFadingFactor(outlier_probability=1.2), "outlier_probability"),
-    (lambda: SingleFadingFactor(outlier_run=0), "outlier_run must be >= 1"),
+    (lambda: SingleFadingFactor(outlier_run=0), "outlier_run must be an integer >= 1"),
     (lambda: MultipleFadingFactors(axes="body"), "valid: measurement, local-level"),
 ])
 def test_bad_arguments_raise_one_line_errors(make, match):

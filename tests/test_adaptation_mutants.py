@@ -322,3 +322,16 @@ def test_a_policy_must_define_adapt():
     for cls in (AdaptationPolicy, Incomplete):
         with pytest.raises(TypeError, match="abstract"):
             cls()
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: RobustAdaptive(c0=1.0, c1=np.inf), "need 0 < c0 < c1 < inf"),
+    (lambda: SelectiveWeights(k0=1.0, k1=np.inf), "need 0 < k0 < k1 < inf"),
+    (lambda: SelectiveWeights(max_rejections=2.5), "max_rejections must be an integer"),
+])
+def test_thresholds_that_would_give_nan_weights_are_refused(make, message):
+    """An infinite upper threshold made the IGG-III weights and the adaptive factor
+    NaN (inf - x over inf - k0), silently; a fractional rejection count let one more
+    rejection through than it says."""
+    with pytest.raises(ValueError, match=message):
+        make()
