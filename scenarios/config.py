@@ -57,12 +57,13 @@ class ScenarioConfig:
     scenario's experiment validates (e.g. paper 002's initial_covariance)."""
     faults: ImuFaults = ImuFaults()
     sensors: tuple[tuple[str, Any], ...] = ()
-    schedule: Schedule = Schedule()
-    """The disturbances that change within the episode ([[schedule]]: the GNSS
-    receiver's sigmas and multipath, the IMU's white noise), SI."""
     """The registered sensors without a field of their own (``sensors.base``), as
     (section, spec) pairs in their registration order: a [dvl] table, a user's sensor.
     Specs are in SI (the file's _deg and _arcsec keys converted to rad)."""
+    schedule: Schedule = Schedule()
+    """The disturbances that change within the episode ([[schedule]]: the GNSS
+    receiver's sigmas and multipath, the IMU's white noise, the wave-driven ship's sea
+    state), SI."""
     experiment: str = ""
     """The pipeline that runs on this scenario (the file's ``experiment`` key, e.g.
     "paper003"; "" for none): the only map from a scenario to its experiment."""
@@ -142,20 +143,19 @@ class ScenarioConfig:
             except ValueError as exc:
                 raise ConfigError(_written_in(str(exc), sensor.section,
                                               sensor_units(sensor.section))) from None
-        world = carrier
-        if self.gps is not None and not world.dynamic:
+        if self.gps is not None and not carrier.dynamic:
             ratio = self.imu_rate / self.gps.rate
             if abs(ratio - round(ratio)) > 1e-9:
                 raise ConfigError(f"gps.rate_hz = {self.gps.rate:g} Hz must divide {rate} "
                                   f"= {self.imu_rate:g} Hz")
-        if world.dynamic:
-            physics = world.physics_rate
+        if carrier.dynamic:
+            physics = carrier.physics_rate
             ratio = physics / self.imu_rate
             if abs(ratio - round(ratio)) > 1e-9:
                 raise ConfigError(f"{rate} = {self.imu_rate:g} Hz must divide the "
                                   f"{self.world} physics rate {physics:g} Hz")
         try:
-            world.check(self)
+            carrier.check(self)
         except ValueError as exc:
             raise ConfigError(_as_written(str(exc))) from None
 
@@ -256,7 +256,7 @@ def _build(raw: dict[str, Any], source: str) -> ScenarioConfig:
     present = {"gps": gps, "odometer": odometer, "encoder": encoder, **dict(sensors)}
     schedule = _schedule(raw.get("schedule", []), source,
                          {k: v for k, v in present.items() if v is not None}, imu_spec,
-                         carrier, motion_obj)
+                         carrier, motion_obj, motion_units)
     filter_table = tuple(sorted(section("filter", False).items()))
     if "gimbal_stalls" in motion:
         raise ConfigError("motion.gimbal_stalls: stalls are faults; write them in [faults] "
@@ -415,7 +415,7 @@ SCHEDULED_IMU = ("gyro_arw_deg_sqrt_h", "accel_vrw_m_s_sqrt_h", "accel_vrw_ug_sq
 
 
 def _schedule(rows: Any, source: str, specs: dict[str, Any], imu: ImuSpec, world,
-              motion) -> Schedule:
+              motion, motion_units: dict[str, str]) -> Schedule:
     """The [[schedule]] list: per entry its time_s, ramp_s (0 if absent) and, per table it
     changes (imu, the world's [motion] where it has schedulable fields, or a sensor of the
     scenario with schedulable fields), the new values in that table's units; each
@@ -440,7 +440,7 @@ def _schedule(rows: Any, source: str, specs: dict[str, Any], imu: ImuSpec, world
                 values = _scheduled_imu(table, f"{where}.imu", imu)
             elif section == "motion" and world.schedulable:
                 values = _scheduled_fields(table, f"{where}.motion", "motion", motion,
-                                           world.schedulable, UNITS)
+                                           world.schedulable, motion_units)
             else:
                 values = _scheduled_sensor(table, f"{where}.{section}", section, specs,
                                            world)

@@ -163,26 +163,17 @@ def simulate(config: ScenarioConfig, seed: int = 0, ideal: bool = False) -> Epis
     dtheta, dv, realization = _imu_errors(config, rngs, dtheta, dv, ideal,
                                           truth.gimbal_angles)
     imu_t, dtheta, dv, imu_faults = _faults(config, shared.imu_t, dtheta, dv)
-    seen = SensorTruth(truth=truth, plane=_plane(config), antenna=shared.antenna,
-                       rear_wheels=shared.rear_wheels, has_gimbal=config.motion.has_gimbal)
-    return _episode(config, seed, ideal, truth, imu_t, dtheta, dv, realization, imu_faults,
-                    seen, rngs, cross_track=shared.cross_track)
-
-
-def _plane(config: ScenarioConfig) -> TangentPlane:
-    return TangentPlane(config.latitude, config.longitude, config.height)
-
-
-def _episode(config, seed, ideal, truth, imu_t, dtheta, dv, realization, imu_faults,
-             seen: SensorTruth, rngs, cross_track=None) -> Episode:
-    """The episode, its sensors measured (``sensors.suite``) and its faults recorded."""
+    seen = SensorTruth(truth=truth, plane=TangentPlane(config.latitude, config.longitude,
+                                                       config.height),
+                       antenna=shared.antenna, rear_wheels=shared.rear_wheels,
+                       has_gimbal=config.motion.has_gimbal)
     suite = config.sensor_suite()
     records = suite.measure(seen, rngs.__getitem__, ideal)
     return Episode(config=config, seed=seed, ideal=ideal, truth=truth, imu_t=imu_t,
                    dtheta=dtheta, dv=dv, imu_realization=realization, measurements=records,
                    faults=_fault_log(config, imu_faults, suite.faults(records,
                                                                       config.duration)),
-                   cross_track=cross_track)
+                   cross_track=shared.cross_track)
 
 
 def imu_rails(config: ScenarioConfig) -> tuple[float, float]:

@@ -25,6 +25,7 @@ from aligngym.scenarios.world_truth import (Scenario, WorldTruth, cached_motion,
                                             dynamic_motion, motion_key,
                                             prescribed_world_truth, run_gimbal,
                                             shared_motion)
+from aligngym.sensors.base import same_class
 
 __all__ = ["World", "WorldTruth", "WORLDS", "register_world", "world_named", "world_of",
            "make_world", "make_dynamic_world", "run_gimbal", "check_range",
@@ -140,8 +141,7 @@ def register_world(cls: type[World]) -> type[World]:
     if not (isinstance(name, str) and name):
         raise ValueError(f"world {cls.__name__} must have a name")
     held = WORLDS.get(name)
-    if held is not None and (held.__module__, held.__qualname__) != (cls.__module__,
-                                                                      cls.__qualname__):
+    if held is not None and not same_class(held, cls):
         raise ValueError(f"world name {name!r} is taken by {held.__module__}."
                          f"{held.__qualname__}")
     WORLDS[name] = cls

@@ -74,10 +74,10 @@ class Sensor(ABC):
     unit suffix in the file: "_m", "_s", "_hz", "_deg", "_deg_s", "_arcsec" or "" for
     none); ``presets`` (name -> spec, for ``preset = "..."``); ``needs`` (what the world
     must give it: "antenna" (a GNSS antenna on the carrier), "wheels" (a car's), "hull"
-    (a hull under water); a world declares what it ``gives``); ``stream`` (its random stream of the episode,
-    ``simulate.episode_rngs``: a name of its own); ``schedulable`` (the spec's fields a
-    [[schedule]] entry may change within the episode: ``measure`` reads them through
-    ``profile``)."""
+    (a hull under water); a world declares what it ``gives``); ``stream`` (its random
+    stream of the episode, ``simulate.episode_rngs``: a name of its own);
+    ``schedulable`` (the spec's fields a [[schedule]] entry may change within the
+    episode: ``measure`` reads them through ``profile``)."""
 
     section: ClassVar[str]
     spec_type: ClassVar[type]
@@ -111,6 +111,28 @@ class Sensor(ABC):
         return []
 
 
+def outside_windows(t: np.ndarray, windows: tuple[tuple[float, float], ...]
+                    ) -> np.ndarray:
+    """(N,) True where the times t (N,) s lie in none of the [start, end) windows (s): a
+    receiver's outages, a DVL's dropouts."""
+    keep = np.ones(np.shape(t), bool)
+    for start, end in windows:
+        keep &= ~((t >= start) & (t < end))
+    return keep
+
+
+def window_faults(kind: str, windows: tuple[tuple[float, float], ...], duration: float
+                  ) -> list[tuple[str, float, float]]:
+    """Fault rows (kind, start s, end s) of the windows that begin within a run of
+    duration s, each cut at its end."""
+    return [(kind, start, min(end, duration)) for start, end in windows if start < duration]
+
+
+def same_class(a: type, b: type) -> bool:
+    """The same class, or its module reloaded (a registry may take it again)."""
+    return (a.__module__, a.__qualname__) == (b.__module__, b.__qualname__)
+
+
 SENSORS: dict[str, type[Sensor]] = {}
 """Registered sensors by their section (``register_sensor``)."""
 
@@ -120,11 +142,6 @@ RESERVED_SECTIONS = ("origin", "run", "imu", "motion", "filter", "indexer", "fau
 """A scenario file's own tables and keys: no sensor's section."""
 RESERVED_STREAMS = ("motion", "imu_realization", "imu_noise")
 """The episode's random streams of the world and the IMU: no sensor's stream."""
-
-
-def _same(a: type, b: type) -> bool:
-    """The same class, or its module reloaded."""
-    return (a.__module__, a.__qualname__) == (b.__module__, b.__qualname__)
 
 
 def register_sensor(cls: type[Sensor]) -> type[Sensor]:
@@ -137,13 +154,13 @@ def register_sensor(cls: type[Sensor]) -> type[Sensor]:
         raise ValueError(f"sensor section {name!r} must be a name other than "
                          + ", ".join(RESERVED_SECTIONS))
     held = SENSORS.get(name)
-    if held is not None and not _same(held, cls):
+    if held is not None and not same_class(held, cls):
         raise ValueError(f"sensor section [{name}] is taken by {held.__module__}."
                          f"{held.__qualname__}")
     stream = getattr(cls, "stream", None)
     if not isinstance(stream, str):
         raise ValueError(f"sensor {cls.__name__} must name its random stream")
-    taken = [s for s in SENSORS.values() if s.stream == stream and not _same(s, cls)]
+    taken = [s for s in SENSORS.values() if s.stream == stream and not same_class(s, cls)]
     if stream in RESERVED_STREAMS or taken:
         raise ValueError(f"sensor {cls.__name__}'s stream {stream!r} is taken (by "
                          + (taken[0].__name__ if taken else "the world or the IMU")

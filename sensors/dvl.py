@@ -11,7 +11,8 @@ import numpy as np
 
 from aligngym.models.attitude import quat_conj, quat_mul, quat_rotate, quat_to_rotvec
 from aligngym.sensors import number_rows
-from aligngym.sensors.base import Sensor, SensorRecord, SensorTruth, register_sensor
+from aligngym.sensors.base import (Sensor, SensorRecord, SensorTruth, outside_windows,
+                                   register_sensor, window_faults)
 
 
 @dataclass(frozen=True)
@@ -117,9 +118,7 @@ class DopplerVelocityLog(Sensor):
         dt = float(truth.truth.t[1] - truth.truth.t[0])
         every = max(1, int(round(1.0 / (spec.rate * dt))))
         t, v_b = transducer_velocity_b(truth, every, np.asarray(spec.lever_arm_b))
-        valid = np.ones(t.size, bool)
-        for start, end in spec.dropouts:
-            valid &= ~((t >= start) & (t < end))
+        valid = outside_windows(t, spec.dropouts)
         if ideal:
             bias, scale = np.zeros(3), 0.0
         else:
@@ -133,5 +132,4 @@ class DopplerVelocityLog(Sensor):
 
     def faults(self, record: SensorRecord, duration: float
                ) -> list[tuple[str, float, float]]:
-        return [("dvl_dropout", start, min(end, duration))
-                for start, end in self.spec.dropouts if start < duration]
+        return window_faults("dvl_dropout", self.spec.dropouts, duration)

@@ -8,7 +8,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from aligngym.sensors import number_rows
-from aligngym.sensors.base import Sensor, SensorRecord, SensorTruth, register_sensor
+from aligngym.sensors.base import (Sensor, SensorRecord, SensorTruth, outside_windows,
+                                   register_sensor, window_faults)
 
 
 @dataclass(frozen=True)
@@ -81,17 +82,12 @@ def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: n
     n = t.size
     R_M, R_N = radii(lat)
     if profile is None:
-        d_north = spec.position_sigma_h * rng.standard_normal(n)
-        d_east = spec.position_sigma_h * rng.standard_normal(n)
-        d_up = spec.position_sigma_v * rng.standard_normal(n)
-        d_v = spec.velocity_sigma * rng.standard_normal((n, 3))
-        dof = np.full(n, spec.multipath_dof)
-    else:
-        d_north = profile["position_sigma_h"] * rng.standard_normal(n)
-        d_east = profile["position_sigma_h"] * rng.standard_normal(n)
-        d_up = profile["position_sigma_v"] * rng.standard_normal(n)
-        d_v = profile["velocity_sigma"][:, None] * rng.standard_normal((n, 3))
-        dof = profile["multipath_dof"]
+        profile = {name: np.full(n, getattr(spec, name)) for name in GnssReceiver.schedulable}
+    d_north = profile["position_sigma_h"] * rng.standard_normal(n)
+    d_east = profile["position_sigma_h"] * rng.standard_normal(n)
+    d_up = profile["position_sigma_v"] * rng.standard_normal(n)
+    d_v = profile["velocity_sigma"][:, None] * rng.standard_normal((n, 3))
+    dof = profile["multipath_dof"]
     if np.any(dof > 0.0):
         # Student-t of the same sigma: a Gaussian over sqrt(chi2_dof / (dof - 2)), one
         # draw per fix (its position and velocity share the multipath).
@@ -108,9 +104,7 @@ def measure(spec: GpsSpec, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: n
         d_up[i] += up
     yaw, sigma = heading_from_velocity(v_meas, spec.velocity_sigma)
     stamp = t + spec.latency
-    valid = np.ones(n, bool)
-    for start, end in spec.outages:
-        valid &= ~((stamp >= start) & (stamp < end))
+    valid = outside_windows(stamp, spec.outages)
     out = {"gps_t": stamp,
            "gps_lat": lat + d_north / (R_M + h),
            "gps_lon": lon + d_east / ((R_N + h) * np.cos(lat)),
@@ -180,7 +174,7 @@ class GnssReceiver(Sensor):
         if ideal:
             spec = replace(spec, position_sigma_h=0.0, position_sigma_v=0.0,
                            velocity_sigma=0.0, multipath_dof=0.0)
-        elif any(self.schedule.touches(self.section, name) for name in self.schedulable):
+        else:
             profile = {name: self.profile(name, t) for name in self.schedulable}
         fixes = measure(spec, t, lat, lon, h, v_n, rng, profile)
         return GnssFixes(**{name.removeprefix("gps_"): value
@@ -188,7 +182,6 @@ class GnssReceiver(Sensor):
 
     def faults(self, record: SensorRecord, duration: float
                ) -> list[tuple[str, float, float]]:
-        rows = [("gnss_outage", start, min(end, duration))
-                for start, end in self.spec.outages if start < duration]
-        return rows + [("gnss_outlier", record.t[k], record.t[k]) for k in
-                       (nearest_fix(record.t, when) for when, *_ in self.spec.outliers)]
+        outliers = [("gnss_outlier", record.t[k], record.t[k]) for k in
+                    (nearest_fix(record.t, when) for when, *_ in self.spec.outliers)]
+        return window_faults("gnss_outage", self.spec.outages, duration) + outliers
