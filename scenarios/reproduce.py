@@ -62,6 +62,10 @@ def run_claims(plan: list[ClaimCampaign], out_dir: Path | None = None,
         number[paper] += 1
         first = campaign.claims[0]
         start = time.perf_counter()
+        if out_dir is not None:     # matplotlib imported while the campaign's workers run
+            from aligngym.scenarios.campaign.executors import while_waiting
+            from aligngym.scenarios.figures import load_drawing
+            while_waiting(load_drawing)
         result = spec.run(workers=workers, progress=False)
         metrics = flatten(result.summary())
         log(f"{paper}: campaign {number[paper]} of {of_paper[paper]} ({first.setup} setup"

@@ -93,3 +93,39 @@ def test_more_workers_than_cores_start_no_more_processes(short002, monkeypatch):
     (run,) = filtering.run_filters(["ekf"], starts, episodes, exp, workers=16, epochs=31)
     assert seen == [2] and run.filter == "ekf"
     assert filtering.run_filters(["ekf"], starts, [], exp, workers=2, epochs=31) == []
+
+
+def test_work_queued_for_the_wait_runs_once_here_while_the_workers_run(short002, monkeypatch):
+    """``executors.while_waiting``: a queued task runs once, in this process, after the
+    worker processes have started (the episode preparation's and the filter phase's);
+    one that raises does not stop the campaign, whose runs stay those of a serial run."""
+    import multiprocessing
+    import os
+
+    from aligngym.scenarios.campaign import executors
+
+    exp, episodes, starts = short002
+    monkeypatch.setattr(executors, "usable_cores", lambda: 2)
+    monkeypatch.setattr(filtering, "PARALLEL_MIN_WORK", 0.0)
+    monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
+    seen = []
+
+    def task():
+        seen.append((os.getpid(), len(multiprocessing.active_children())))
+
+    def failing():
+        raise ImportError("no such module")
+
+    executors.while_waiting(task)
+    executors.while_waiting(failing)
+    again = prepare_all(exp, episode_seeds(5, 3), None, False, 2, progress=False)
+    assert seen == [(os.getpid(), 2)] and not executors._WHILE_WAITING
+    for a, b in zip(again, episodes):
+        np.testing.assert_array_equal(a.C_b_n_true, b.C_b_n_true)
+    executors.while_waiting(task)
+    runs = filtering.run_filters(["ekf", "ukf"], starts, episodes, exp, workers=2, epochs=31)
+    assert seen[1:] == [(os.getpid(), 2)]
+    serial = [run for name in ("ekf", "ukf")
+              for run in run_filter_starts(name, starts, episodes, exp)]
+    for a, b in zip(runs, serial):
+        np.testing.assert_array_equal(a.result.x, b.result.x)

@@ -21,6 +21,30 @@ from aligngym.scenarios.interrupts import raise_if_interrupted
 Finish = Callable[[int, PreparedEpisode], None]
 """What an executor hands each prepared episode to, with its seed, as it arrives."""
 
+_WHILE_WAITING: list[Callable[[], None]] = []
+"""Work queued by ``while_waiting``."""
+
+
+def while_waiting(task: Callable[[], None]) -> None:
+    """Run ``task`` (no arguments; e.g. imports the outputs will need) once in this
+    process, the next time it waits for its worker processes, after they have started:
+    on a core the workers leave over rather than on the critical path, and inherited by
+    the processes forked later. Never run if no wait comes (the work is then done where
+    it is needed). A task's exception is left to whoever needs the work (the same
+    import fails again there): it is not raised into the campaign."""
+    _WHILE_WAITING.append(task)
+
+
+def run_waiting_work() -> None:
+    """The tasks queued by ``while_waiting``, each once, in their order (called by this
+    process's loops that wait for worker processes, once these have started)."""
+    while _WHILE_WAITING:
+        task = _WHILE_WAITING.pop(0)
+        try:
+            task()
+        except Exception:           # the work is done again, and fails loudly, where needed
+            pass
+
 
 class Executor(Protocol):
     """Prepares a campaign's episodes somewhere: ``prepare`` calls
@@ -149,6 +173,7 @@ def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
                                initializer=start_worker, initargs=(os.getpid(),))
     with stopped_on_error(pool):
         futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
+        run_waiting_work()
         for fut in as_completed(futures):
             finish(futures[fut], fut.result())
 

@@ -25,8 +25,9 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.catalogue import filter_entry
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
-from aligngym.scenarios.campaign.executors import (can_fork_workers, start_worker,
-                                                   stopped_on_error, usable_cores)
+from aligngym.scenarios.campaign.executors import (can_fork_workers, run_waiting_work,
+                                                   start_worker, stopped_on_error,
+                                                   usable_cores)
 from aligngym.scenarios.campaign.experiment import Experiment, FilterRun
 from aligngym.scenarios.campaign.runs import (analyse_starts, concatenate_results,
                                               member_batch, run_members)
@@ -136,6 +137,7 @@ def _run_in_processes(tasks: list[FilterTask], processes: int,
     with stopped_on_error(pool):
         order = sorted(range(len(tasks)), key=lambda i: -tasks[i].work)
         futures = {pool.submit(_run_task, tasks[i].name, tasks[i].index): i for i in order}
+        run_waiting_work()
         for future in as_completed(futures):
             raise_if_interrupted()
             results[futures[future]] = future.result()

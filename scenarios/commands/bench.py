@@ -130,6 +130,10 @@ def run(args: argparse.Namespace) -> int:
         check_writable(args.json, "--json")
     summaries, elapsed = [], 0.0
     for spec in plan.specs:
+        if not args.no_figures:        # matplotlib imported while the campaign's workers run
+            from aligngym.scenarios.campaign.executors import while_waiting
+            from aligngym.scenarios.figures import load_drawing
+            while_waiting(load_drawing)
         out = (args.out if plan.sweep is None or args.out is None
                else str(Path(args.out) / spec.label))
         start = time.perf_counter()
