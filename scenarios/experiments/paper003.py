@@ -331,10 +331,12 @@ class Paper003Episode(PreparedEpisode):
 
 
 def prepare_episode(experiment: Paper003Experiment, seed: int,
-                    config: ScenarioConfig | None = None) -> Paper003Episode:
-    """Simulate one episode, integrate it and run the coarse alignment."""
+                    config: ScenarioConfig | None = None,
+                    simulated: tuple | None = None) -> Paper003Episode:
+    """Simulate one episode (or take ``simulated``, what ``simulate_screened(config,
+    seed)`` returned), integrate it and run the coarse alignment."""
     config = config or experiment.scenario_config()
-    episode, flags = simulate_screened(config, seed)
+    episode, flags = simulated or simulate_screened(config, seed)
     truth = episode.truth
     lat, h = float(truth.lat[0]), float(truth.h[0])  # known position of the IMU at t0
     integrals = body_frame_integrals(episode.dtheta, episode.dv, episode.gimbal_encoder,
