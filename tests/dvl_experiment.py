@@ -28,10 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.inertial_fine import (EPS, NABLA, PHI, FineInputs, FineTuning,
-                                               InertialFineModel, stack_inputs)
-from aligngym.estimators.inertial_frame import C_n_i, gimbal_rate_s
-from aligngym.estimators.metrics import nees
+from aligngym.estimators.inertial_fine import (FineInputs, FineTuning, InertialFineModel,
+                                               stack_inputs)
+from aligngym.estimators.inertial_frame import gimbal_rate_s
 from aligngym.estimators.model import Observation, StateLayout, Transition
 from aligngym.models.attitude import cross
 from aligngym.models.units import deg
@@ -65,10 +64,16 @@ class DvlEpisode(paper003.Paper003Episode):
         return {**super().arrays(), "v_centre_b": self.v_centre_b, "dvl_bias": self.dvl_bias}
 
     @classmethod
-    def from_arrays(cls, f) -> "DvlEpisode":
-        base = paper003.Paper003Episode.from_arrays(f)
+    def aided(cls, base: paper003.Paper003Episode, v_centre_b: np.ndarray,
+              dvl_bias: np.ndarray) -> "DvlEpisode":
+        """Paper 003's episode with the DVL's arrays."""
         return cls(**{k: getattr(base, k) for k in base.__dataclass_fields__},
-                   v_centre_b=f["v_centre_b"], dvl_bias=f["dvl_bias"])
+                   v_centre_b=v_centre_b, dvl_bias=dvl_bias)
+
+    @classmethod
+    def from_arrays(cls, f) -> "DvlEpisode":
+        return cls.aided(paper003.Paper003Episode.from_arrays(f), f["v_centre_b"],
+                         f["dvl_bias"])
 
 
 def sway_centre_velocity(episode, config, epoch_t: np.ndarray) -> np.ndarray:
@@ -194,12 +199,10 @@ class DvlAidedExperiment(Experiment):
         simulated = simulate_screened(config, seed)
         base = paper003.prepare_episode(self, seed, config, simulated)
         v = sway_centre_velocity(simulated[0], config, base.inputs.t)
-        return DvlEpisode(**{k: getattr(base, k) for k in base.__dataclass_fields__},
-                          v_centre_b=v, dvl_bias=simulated[0].measurements["dvl"].bias)
+        return DvlEpisode.aided(base, v, simulated[0].measurements["dvl"].bias)
 
     def start_errors(self, episodes):
-        coarse = np.stack([e.coarse_error for e in episodes])
-        return {"mean": coarse.mean(0), "max": paper003.signed_extreme(coarse, np.argmax)}
+        return paper003.coarse_starts(episodes)
 
     def model(self, episodes, start_error, variant=""):
         config = self.scenario_config()
@@ -228,14 +231,7 @@ class DvlAidedExperiment(Experiment):
 
     def nees(self, result, episodes, error_n):
         """NEES over attitude (in i) and the sensor-frame biases."""
-        lat = np.array([e.lat for e in episodes])
-        phi_i = np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]), error_n)
-        err = np.concatenate([
-            phi_i,
-            np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
-            np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
-        sub = np.r_[PHI, EPS, NABLA]
-        return nees(err, result.P[:, :, sub][:, :, :, sub])
+        return paper003.attitude_bias_nees(result, episodes, error_n)
 
     def nees_dof(self):
         return 9

@@ -223,9 +223,7 @@ class Paper003Experiment(Experiment):
         return prepare_episode(self, seed, config)
 
     def start_errors(self, episodes):
-        """The mean and the largest (per axis, by magnitude) coarse error."""
-        coarse = np.stack([e.coarse_error for e in episodes])
-        return {"mean": coarse.mean(0), "max": signed_extreme(coarse, np.argmax)}
+        return coarse_starts(episodes)
 
     model_variants = ("sway-aware",)
 
@@ -274,19 +272,13 @@ class Paper003Experiment(Experiment):
         """NEES over attitude and biases, in the filter's frames (phi in i); attitude only,
         about the ``unmodelled_floor``, when the scenario's biases are fixed in the hull
         frame (the model's sensor-frame bias states then have no true value)."""
-        lat = np.array([e.lat for e in episodes])
-        C_ni = C_n_i(result.t[None], lat[:, None])
         floor = self.unmodelled_floor(episodes)
         if floor is not None:
-            phi_i = np.einsum("bkij,bkj->bki", C_ni, error_n - floor[:, None])
+            lat = np.array([e.lat for e in episodes])
+            phi_i = np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]),
+                              error_n - floor[:, None])
             return nees(phi_i, result.P[:, :, PHI, PHI])
-        phi_i = np.einsum("bkij,bkj->bki", C_ni, error_n)
-        err = np.concatenate([
-            phi_i,
-            np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
-            np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
-        sub = np.r_[PHI, EPS, NABLA]
-        return nees(err, result.P[:, :, sub][:, :, :, sub])
+        return attitude_bias_nees(result, episodes, error_n)
 
     def nees_dof(self):
         """3 (attitude) with hull-frame biases, else 9 (attitude and biases)."""
@@ -357,6 +349,28 @@ def prepare_episode(experiment: Paper003Experiment, seed: int,
         C_s_b=gimbal_C_s_b(enc),
         gyro_bias=episode.imu_realization.gyro.bias,
         accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h)
+
+
+def coarse_starts(episodes: list[Paper003Episode]) -> dict[str, np.ndarray]:
+    """The fine stage's starts (rad, E, N, U): the mean and the largest (per axis, by
+    magnitude) coarse error of the episodes."""
+    coarse = np.stack([e.coarse_error for e in episodes])
+    return {"mean": coarse.mean(0), "max": signed_extreme(coarse, np.argmax)}
+
+
+def attitude_bias_nees(result, episodes: list[Paper003Episode], error_n: np.ndarray
+                       ) -> np.ndarray:
+    """NEES (B, K+1) of the inertial-frame model's misalignment (error_n (B, K+1, 3) rad,
+    E, N, U, turned into i) and sensor-frame gyro and accelerometer biases, against the
+    episodes' drawn biases: 9 degrees of freedom."""
+    lat = np.array([e.lat for e in episodes])
+    phi_i = np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]), error_n)
+    err = np.concatenate([
+        phi_i,
+        np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
+        np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
+    sub = np.r_[PHI, EPS, NABLA]
+    return nees(err, result.P[:, :, sub][:, :, :, sub])
 
 
 def signed_extreme(errors: np.ndarray, pick) -> np.ndarray:
