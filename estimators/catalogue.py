@@ -13,6 +13,7 @@ from aligngym.estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFa
                                             RobustAdaptive, SelectiveWeights,
                                             SingleFadingFactor)
 from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.sage_husa import SageHusaNoise
 from aligngym.estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule,
                                        LinearizationRule, ReducedGaussHermiteRule,
                                        SparseGridGaussHermiteRule, UnscentedRule)
@@ -108,6 +109,9 @@ FILTERS: dict[str, FilterEntry] = {
                           "unscented KF with kappa = 3 - n (PSINS's UKF; on the "
                           "experiment's own model: 004's classic UKF)"),
     "ckf": FilterEntry(CubatureRule, NoAdaptation, "cubature KF"),
+    "sage-husa": FilterEntry(LinearizationRule, SageHusaNoise,
+                             "KF / EKF with Sage-Husa R from the innovations, forgetting "
+                             "factor 0.97 (textbook adaptive baseline, not a paper's)"),
 }
 STUKF_SPREAD = 1.5
 """n + kappa of the STUKF's points (kappa = -13.5 for its 15 states). With 004's P0 (45,

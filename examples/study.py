@@ -32,8 +32,9 @@ import numpy as np
 from scipy import stats
 
 import aligngym  # noqa: F401  (registers the env ids)
+from aligngym.estimators.catalogue import filter_entry
 from aligngym.scenarios.bank import EpisodeBank, split_seeds
-from aligngym.scenarios.env import REWARDS
+from aligngym.scenarios.env import REWARDS, episode_step_count
 from aligngym.scenarios.experiments import env_experiment
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 
@@ -44,17 +45,19 @@ SLOTS = 16
 
 
 def score(env: AlignmentVectorEnv, seeds: list[int], policy) -> dict[str, np.ndarray]:
-    """Run each seed's episode once (a slot each) under policy(obs) -> actions; per
-    episode: its summed reward per epoch of the episode's length (a diverged one is
-    charged the worst reward for the epochs it did not run, by the env), its final
-    heading error (arcmin) and whether it diverged."""
+    """Run each seed's episode once (a slot each, all from step 0) under policy(obs, k)
+    -> actions at step k; per episode: its summed reward per epoch of the episode's
+    length (a diverged one is charged the worst reward for the epochs it did not run, by
+    the env), its final heading error (arcmin) and whether it diverged."""
     obs, _ = env.reset(options={"episode_seed": seeds})
     n = env.num_envs
     total = np.zeros(n)
     heading, diverged = np.full(n, np.nan), np.zeros(n, bool)
     live = np.ones(n, bool)
+    k = 0
     while live.any():
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        obs, reward, terminated, truncated, info = env.step(policy(obs, k))
+        k += 1
         total[live] += reward[live]
         for i in np.flatnonzero(live & (terminated | truncated)):
             heading[i] = info["metrics"]["final_phi_U_arcmin"][i]
@@ -91,28 +94,112 @@ def summarise(arm: str, filter_name: str, result: dict, reference: dict,
             **(extra or {})}
 
 
+def headroom(scenario: str, default: dict, best_constant: dict, oracle: dict,
+             arms: dict[str, dict]) -> dict:
+    """The leaderboard entry of a scenario with a schedule: mean reward per epoch on the
+    test episodes of the base filter as tuned (default), its best constant retune and the
+    oracle (a constant retune per segment, knowing the schedule); the headroom (oracle
+    minus best constant) with its 95 % paired bootstrap interval; per arm its score and
+    the fraction of the headroom it closes, (arm - best constant) / headroom, with the
+    interval of that ratio over the same paired resamples of episodes."""
+    c, o = best_constant["reward"], oracle["reward"]
+    rng = np.random.default_rng(0)
+    resamples = rng.integers(0, c.size, (2000, c.size))     # episodes, paired across arms
+    gap = (o - c)[resamples].mean(1)
+    entry = {"scenario": scenario, "episodes": int(c.size),
+             "default": float(default["reward"].mean()), "best_constant": float(c.mean()),
+             "oracle": float(o.mean()), "headroom": float((o - c).mean()),
+             "headroom_ci95": np.percentile(gap, [2.5, 97.5]).tolist(), "arms": {}}
+    for arm, result in arms.items():
+        r = result["reward"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratios = (r - c)[resamples].mean(1) / gap
+        entry["arms"][arm] = {
+            "score": float(r.mean()), "fraction": float((r - c).mean() / (o - c).mean()),
+            "fraction_ci95": np.nanpercentile(ratios, [2.5, 97.5]).tolist()}
+    return entry
+
+
+def record_headroom(path: Path, entry: dict) -> None:
+    """Write entry into the leaderboard file (a list of entries, one per scenario: the
+    scenario's earlier entry is replaced), atomically."""
+    from aligngym.scenarios.atomic import write_json
+    entries = json.loads(path.read_text()) if path.is_file() else []
+    entries = [e for e in entries if e["scenario"] != entry["scenario"]] + [entry]
+    write_json(path, sorted(entries, key=lambda e: e["scenario"]))
+
+
+def print_headroom(entry: dict) -> None:
+    lo, hi = entry["headroom_ci95"]
+    print(f"\nheadroom (oracle - best constant): {entry['headroom']:+.3f} [{lo:+.3f}, "
+          f"{hi:+.3f}] per epoch = {entry['headroom'] / abs(entry['default']):.0%} of the "
+          f"default's {entry['default']:.3f}")
+    print("| arm | reward / epoch | fraction of the headroom [95 % CI] |")
+    print("| --- | --- | --- |")
+    for arm, a in entry["arms"].items():
+        flo, fhi = a["fraction_ci95"]
+        print(f"| {arm} | {a['score']:.3f} | {a['fraction']:+.2f} [{flo:+.2f}, {fhi:+.2f}] |")
+
+
 def constant(action: np.ndarray, n: int):
-    return lambda obs: np.broadcast_to(action, (n, action.size)).astype(np.float32)
+    """The policy that takes action (A,) in every slot at every step."""
+    return piecewise(np.asarray(action)[None], [], n)
+
+
+def piecewise(actions: np.ndarray, starts: list[int], n: int):
+    """The policy that takes actions[j] (S, A) in every slot during segment j: steps
+    [starts[j - 1], starts[j]) (starts: the S - 1 first steps of segments 1 ..)."""
+    actions = np.asarray(actions, np.float32)
+
+    def policy(obs, k: int) -> np.ndarray:
+        j = int(np.searchsorted(starts, k, side="right"))
+        return np.broadcast_to(actions[j], (n, actions.shape[1]))
+    return policy
+
+
+def segment_starts(schedule, fine_start: float, dt: float, steps: int) -> list[int]:
+    """The steps where the schedule's segments (``Schedule.boundaries``, scenario time s)
+    begin within a fine run of ``steps`` epochs of dt s from fine_start s: step k's
+    update is at fine_start + (k + 1) dt; a segment's first step is the first whose
+    update lies beyond its boundary."""
+    updates = fine_start + (np.arange(steps) + 1) * dt
+    firsts = {int(np.searchsorted(updates, edge, side="right"))
+              for edge in schedule.boundaries()}
+    return sorted(k for k in firsts if 0 < k < steps)
 
 
 def cross_entropy(make, seeds: list[int], iterations: int, population: int,
-                  reward: str, elite: int = 3) -> tuple[np.ndarray, list[float]]:
-    """The constant action with the best mean training reward (one batched run of the
-    training episodes per candidate)."""
-    env = make(len(seeds), "train", reward=reward)
+                  reward: str, elite: int = 3, starts: list[int] = (),
+                  initial: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
+    """The piecewise-constant action (len(starts) + 1 segments, ``piecewise``; one
+    segment: a constant action) with the best mean training reward, by the
+    cross-entropy method from initial (S, A; None: zeros, the filter as tuned). Each
+    iteration runs the whole population at once: one batched run of population x
+    len(seeds) slots (a cohort's members are independent: the same numbers as one run
+    per candidate), the current mean as its first candidate. Returns the best candidate
+    evaluated and the best training reward per iteration."""
+    n = len(seeds)
+    env = make(n * population, "train", reward=reward)
     rng = np.random.default_rng(0)
-    dim = env.single_action_space.shape[0]
-    mean, std, history = np.zeros(dim), np.full(dim, 0.5), []
+    shape = (len(starts) + 1, env.single_action_space.shape[0])
+    mean = np.zeros(shape).ravel() if initial is None else np.asarray(initial, float).ravel()
+    std, history = np.full(mean.size, 0.5), []
+    best, best_score = mean, -np.inf
     for _ in range(iterations):
-        candidates = np.clip(mean + std * rng.standard_normal((population, dim)), -1, 1)
+        candidates = np.clip(mean + std * rng.standard_normal((population, mean.size)), -1, 1)
         candidates[0] = mean
-        scores = np.array([score(env, seeds, constant(c, len(seeds)))["reward"].mean()
-                           for c in candidates])
-        best = candidates[np.argsort(scores)[-elite:]]
-        mean, std = best.mean(0), np.maximum(best.std(0), 0.05)
+        slots = np.repeat(candidates.reshape((population,) + shape), n, axis=0)  # (P n, S, A)
+        policy = lambda obs, k, a=slots.astype(np.float32): a[  # noqa: E731
+            :, int(np.searchsorted(starts, k, side="right"))]
+        scores = score(env, list(seeds) * population, policy)["reward"].reshape(
+            population, n).mean(1)
+        if scores.max() > best_score:
+            best, best_score = candidates[np.argmax(scores)], float(scores.max())
+        top = candidates[np.argsort(scores)[-elite:]]
+        mean, std = top.mean(0), np.maximum(top.std(0), 0.05)
         history.append(float(scores.max()))
     env.close()
-    return mean.astype(np.float32), history
+    return best.reshape(shape).astype(np.float32), history
 
 
 def sb3_vec_env(env: AlignmentVectorEnv):
@@ -136,6 +223,8 @@ def sb3_vec_env(env: AlignmentVectorEnv):
         def step_wait(self):
             obs, reward, terminated, truncated, info = env.step(self._actions)
             done = terminated | truncated
+            if hasattr(self, "curve_tracker"):
+                self.curve_tracker.track(reward, done)
             infos = [{} for _ in range(env.num_envs)]
             for i in np.flatnonzero(done):
                 infos[i] = {"terminal_observation": info["final_obs"][i],
@@ -160,6 +249,70 @@ def sb3_vec_env(env: AlignmentVectorEnv):
     return AlignmentSb3()
 
 
+AGENTS = {"ppo": "PPO policy", "recurrent-ppo": "recurrent PPO policy"}
+"""The learned arms (stable-baselines3; recurrent PPO from sb3-contrib)."""
+
+
+class LearningCurve:
+    """A VecEnv wrapper's record of the training: per finished episode, the training
+    step and its reward per epoch (the reward the agent trains on)."""
+
+    def __init__(self, vec, steps_per_episode: int) -> None:
+        self.vec, self.steps_per_episode, self.curve = vec, steps_per_episode, []
+        self._total, self._step = np.zeros(vec.num_envs), 0
+
+    def track(self, reward: np.ndarray, done: np.ndarray) -> None:
+        self._total += reward
+        self._step += self.vec.num_envs
+        for i in np.flatnonzero(done):
+            self.curve.append((self._step, float(self._total[i] / self.steps_per_episode)))
+            self._total[i] = 0.0
+
+
+def train_agent(algo: str, make, seed: int, args):
+    """Train one agent on the training split (16 slots of the native vector env, the
+    episodes reset in the same step), VecNormalize with --normalize; returns the model,
+    its VecEnv and its learning curve ((training step, reward per epoch) per episode)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+    env = make(SLOTS, "train", autoreset_mode="SameStep", reward=args.reward)
+    vec = sb3_vec_env(env)
+    vec.curve_tracker = LearningCurve(vec, env.episode_steps)
+    outer = VecNormalize(vec, norm_obs=True, norm_reward=True, gamma=0.99) \
+        if args.normalize else vec
+    if algo == "ppo":
+        from stable_baselines3 import PPO
+        model = PPO("MlpPolicy", outer, n_steps=256, batch_size=256, learning_rate=3e-4,
+                    gamma=0.99, seed=seed, verbose=0, device="cpu")
+    else:
+        from sb3_contrib import RecurrentPPO
+        model = RecurrentPPO("MlpLstmPolicy", outer, n_steps=256, batch_size=256,
+                             learning_rate=3e-4, gamma=0.99, seed=seed, verbose=0,
+                             device="cpu")
+    model.learn(total_timesteps=args.ppo_steps)
+    if args.normalize:
+        outer.training = False                 # frozen statistics from here on
+    return model, outer, vec.curve_tracker.curve
+
+
+def agent_policy(model, vec, n: int, algo: str):
+    """policy(obs, k) of a trained agent, deterministic; observations normalised by the
+    training's frozen statistics where it had them; a recurrent agent's memory starts
+    at step 0."""
+    prepare = vec.normalize_obs if hasattr(vec, "normalize_obs") else (lambda obs: obs)
+    if algo == "ppo":
+        return lambda obs, k: model.predict(prepare(obs), deterministic=True)[0]
+    memory = {}
+
+    def policy(obs, k):
+        if k == 0:
+            memory["state"] = None
+        action, memory["state"] = model.predict(
+            prepare(obs), state=memory["state"], episode_start=np.full(n, k == 0),
+            deterministic=True)
+        return action
+    return policy
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario")
@@ -168,8 +321,13 @@ def main() -> None:
     parser.add_argument("--ce-episodes", type=int, default=32)
     parser.add_argument("--ce-iterations", type=int, default=4)
     parser.add_argument("--ce-population", type=int, default=8)
-    parser.add_argument("--ppo-steps", type=int, default=200_000)
-    parser.add_argument("--ppo-seeds", type=int, default=1, help="PPO runs, seeds 0 ..")
+    parser.add_argument("--oracle-iterations", type=int, default=6)
+    parser.add_argument("--oracle-population", type=int, default=16)
+    parser.add_argument("--ppo-steps", type=int, default=200_000, help="0: no PPO arm")
+    parser.add_argument("--ppo-seeds", type=int, default=1, help="agent runs, seeds 0 ..")
+    parser.add_argument("--algo", nargs="+", default=["ppo"], choices=sorted(AGENTS),
+                        help="the learned agents (recurrent-ppo: sb3-contrib's LSTM PPO, "
+                             "for a disturbance that one epoch does not show)")
     parser.add_argument("--reward", default="attitude", choices=REWARDS,
                         help="the reward the agents train on (scoring uses the default)")
     parser.add_argument("--normalize", action="store_true",
@@ -178,12 +336,17 @@ def main() -> None:
     parser.add_argument("--bank", default="bank")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", default=None)
+    parser.add_argument("--headroom", default=None, metavar="FILE.json",
+                        help="record the scenario's headroom entry in this file (the "
+                             "leaderboard's docs/study/headroom.json)")
     args = parser.parse_args()
     clock = time.perf_counter()
     experiment = env_experiment(args.scenario, args.episode_length, 1.0)
     name = type(experiment).__module__.rsplit(".", 1)[-1]
     base = BASE[name]
     filters = [f for f in dict.fromkeys([*experiment.default_filters, base])]
+    if not filter_entry(base).model:     # the textbook adaptive baseline, on base's model
+        filters.append("sage-husa")
     bank = EpisodeBank(args.bank, experiment)
     train, test = split_seeds("train", args.train), split_seeds("test", args.test)
     bank.build(train + test, workers=args.workers)
@@ -209,33 +372,49 @@ def main() -> None:
                                     args.ce_population, args.reward)
     env = make(len(test), "test")
     trained_on = f", {args.reward} reward" if args.reward != "attitude" else ""
-    rows.append(summarise("constant retune (CE)" + trained_on, base, score(
-        env, test, constant(action, len(test))), tuned[base],
-        {"action": action.round(3).tolist(), "train_reward": history,
-         "wall_s": time.perf_counter() - start}))
+    best_constant = score(env, test, constant(action[0], len(test)))
+    rows.append(summarise("constant retune (CE)" + trained_on, base, best_constant,
+                          tuned[base], {"action": action[0].round(3).tolist(),
+                                        "train_reward": history,
+                                        "wall_s": time.perf_counter() - start}))
     env.close()
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecNormalize
-    for seed in range(args.ppo_seeds):
+    arms = {f"{f} as tuned": tuned[f] for f in filters}
+    arms["best constant"] = best_constant
+    starts = segment_starts(experiment.scenario_config().schedule,
+                            bank.get(train[0]).fine_start, experiment.filter_step,
+                            episode_step_count(experiment.fine_duration,
+                                               experiment.filter_step))
+    oracle = None
+    if starts:                     # the oracle: a constant retune per segment of the schedule
         start = time.perf_counter()
-        vec = sb3_vec_env(make(SLOTS, "train", autoreset_mode="SameStep",
-                               reward=args.reward))
-        if args.normalize:                     # running mean/std of obs and of the return
-            vec = VecNormalize(vec, norm_obs=True, norm_reward=True, gamma=0.99)
-        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, learning_rate=3e-4,
-                    gamma=0.99, seed=seed, verbose=0, device="cpu")
-        model.learn(total_timesteps=args.ppo_steps)
-        trained = time.perf_counter() - start
-        prepare = vec.normalize_obs if args.normalize else (lambda obs: obs)  # frozen stats
+        actions, history = cross_entropy(
+            make, train[:args.ce_episodes], args.oracle_iterations, args.oracle_population,
+            args.reward, elite=max(3, args.oracle_population // 4), starts=starts,
+            initial=np.tile(action, (len(starts) + 1, 1)))
         env = make(len(test), "test")
-        arm = "PPO policy" + (", normalised" if args.normalize else "") + trained_on + (
-            f", seed {seed}" if args.ppo_seeds > 1 else "")
-        rows.append(summarise(arm, base, score(
-            env, test, lambda obs: model.predict(prepare(obs), deterministic=True)[0]),
-            tuned[base], {"ppo_steps": args.ppo_steps, "ppo_seed": seed,
-                          "normalize": args.normalize, "wall_s": trained}))
+        oracle = score(env, test, piecewise(actions, starts, len(test)))
         env.close()
-        vec.close()
+        rows.append(summarise("oracle: constant per segment" + trained_on, base, oracle,
+                              tuned[base], {"actions": actions.round(3).tolist(),
+                                            "segment_starts": starts,
+                                            "train_reward": history,
+                                            "wall_s": time.perf_counter() - start}))
+    for algo in args.algo if args.ppo_steps > 0 else ():
+        for seed in range(args.ppo_seeds):
+            start = time.perf_counter()
+            model, vec, curve = train_agent(algo, make, seed, args)
+            trained = time.perf_counter() - start
+            env = make(len(test), "test")
+            arm = AGENTS[algo] + (", normalised" if args.normalize else "") + trained_on + (
+                f", seed {seed}" if args.ppo_seeds > 1 else "")
+            arms[arm] = score(env, test, agent_policy(model, vec, len(test), algo))
+            rows.append(summarise(arm, base, arms[arm], tuned[base],
+                                  {"algo": algo, "ppo_steps": args.ppo_steps,
+                                   "ppo_seed": seed, "normalize": args.normalize,
+                                   "wall_s": trained,
+                                   "learning_curve": curve}))
+            env.close()
+            vec.close()
     out = {"scenario": args.scenario, "experiment": name, "episode_length_s":
            args.episode_length, "train_episodes": args.train, "test_episodes": args.test,
            "test_seeds": [test[0], test[-1]], "train_reward": args.reward,
@@ -243,6 +422,12 @@ def main() -> None:
            "wall_s": time.perf_counter() - clock, "rows": rows}
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
+    if oracle is not None:
+        entry = headroom(args.scenario, tuned[base], best_constant, oracle, arms)
+        out["headroom"] = entry
+        if args.headroom:
+            record_headroom(Path(args.headroom), entry)
+        print_headroom(entry)
     print(f"{args.scenario}: {args.test} test episodes, {args.train} training, "
           f"{out['wall_s']:.0f} s")
     print(f"| arm | filter | reward / epoch [95 % CI] | gain over `{base}` as tuned "

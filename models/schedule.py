@@ -28,9 +28,20 @@ class Schedule:
     naming the same parameter starts (``check``)."""
 
     entries: tuple[ScheduleEntry, ...] = ()
+    checked_to: float = 0.0
+    """s: the run the entries were checked against (the file's), when a shorter run
+    left out those it does not reach (``within``); 0: none left out."""
 
     def __bool__(self) -> bool:
         return bool(self.entries)
+
+    def within(self, duration: float, checked_to: float) -> "Schedule":
+        """The schedule of a run of duration s shorter than the checked_to s the entries
+        were checked against: the entries after its end are left out (the run ends
+        before they start), a ramp still going at its end is kept as it is, so that the
+        shorter run is the longer one's beginning."""
+        kept = tuple(e for e in self.entries if e.time <= duration)
+        return Schedule(kept, max(checked_to, self.checked_to)) if kept else Schedule()
 
     def touches(self, section: str, name: str) -> bool:
         """Some entry changes section.name."""
@@ -40,6 +51,14 @@ class Schedule:
         """(time s, ramp s, value) of the entries that change section.name, in time order."""
         return [(e.time, e.ramp, dict(e.values)[name]) for e in self.entries
                 if e.section == section and name in dict(e.values)]
+
+    def boundaries(self) -> tuple[float, ...]:
+        """The times (s, sorted, distinct) where a change starts or a ramp ends: the edges
+        of the segments within which every scheduled parameter is constant or ramps
+        linearly (an oracle that knows the schedule retunes at these)."""
+        edges = {e.time for e in self.entries} | {e.time + e.ramp for e in self.entries
+                                                   if e.ramp > 0.0}
+        return tuple(sorted(edges))
 
     def profile(self, section: str, name: str, base: float, t: np.ndarray) -> np.ndarray:
         """The value of section.name at times t (N,) s: base, then each entry's value,
@@ -62,6 +81,7 @@ class Schedule:
         [0, duration] s, whose ramp is negative or outlasts the run, that comes before the
         previous entry, or that changes a parameter still ramping to an earlier value."""
         last, ramping = 0.0, {}
+        duration = max(duration, self.checked_to)
         for i, e in enumerate(self.entries):
             where = e.label or f"schedule[{i}]"
             if not (np.isfinite(e.time) and 0.0 <= e.time <= duration):

@@ -19,15 +19,20 @@ from aligngym.models.indexer import IndexerSpec, indexer_run
 from aligngym.models.units import deg
 from aligngym.models.scene import INSTRUMENTS, VISUAL, fmt, imu_axes, mesh_asset, torus_mesh
 from aligngym.models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
-                          stalled)
+                          smoothstep, stalled)
 
 
 @dataclass(frozen=True)
 class ShipSwayMotion(GimbalRates):
     """Prescribed ship motion. Angles rad, periods s, lengths m, rates rad/s.
 
-    Each attitude channel is ``mean + amplitude cos(2 pi t / period + phase)``.
-    Linear sway amplitudes, periods and phases are per plane axis (E, N, U).
+    Each attitude channel is ``mean + k(t) amplitude cos(2 pi t / period + phase)``.
+    Linear sway amplitudes, periods and phases are per plane axis (E, N, U), each
+    displacement ``k(t) A sin(2 pi t / T + phase)``. k(t) is the sway scale (the sea state
+    relative to the amplitudes given): sway_scale, changed within the episode by
+    sway_scale_changes ((time s, ramp s > 0, value), a [[schedule]]'s), each reached by a
+    septic smoothstep over its ramp (``models.world.smoothstep``), so that angles,
+    positions and their first three derivatives stay continuous.
     indexer: a single-axis azimuth indexer (``models.indexer``) on the outer gimbal axis
     instead of the constant-rate double-axis rotation (both rates 0 then);
     antenna_b: the GNSS antenna from the sway centre (R, F, U), m (None: at the IMU);
@@ -55,9 +60,25 @@ class ShipSwayMotion(GimbalRates):
     antenna_b: tuple[float, float, float] | None = None
     hull_size: tuple[float, float, float] = (18.0, 90.0, 8.0)
     gimbal_stalls: tuple[tuple[float, float], ...] = ()
+    sway_scale: float = 1.0
+    sway_scale_changes: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         self.check_indexer()
+
+    def sway_scale_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The sway scale k(t) (N,), its first and second derivatives (1/s, 1/s^2)."""
+        k = np.full(t.shape, float(self.sway_scale))
+        dk, ddk = np.zeros(t.shape), np.zeros(t.shape)
+        before = float(self.sway_scale)
+        for time, ramp, target in self.sway_scale_changes:
+            value, slope, curvature, _ = smoothstep((t - time) / ramp)
+            step = target - before
+            k += step * value
+            dk += step * slope / ramp
+            ddk += step * curvature / (ramp * ramp)
+            before = target
+        return k, dk, ddk
 
     def hull_yaw_accel(self, t: np.ndarray) -> np.ndarray:
         """The hull's angular acceleration about its z axis (N,) rad/s^2 (what a rotor on
@@ -81,9 +102,19 @@ class ShipSwayMotion(GimbalRates):
                     (0.0, self.roll_amplitude, self.roll_period, self.roll_phase),
                     (self.yaw_mean, self.yaw_amplitude, self.yaw_period, self.yaw_phase)]
         angle, rate, accel = [], [], []
+        changing = bool(self.sway_scale_changes)
+        if changing:
+            k, dk, ddk = self.sway_scale_at(t)
         for mean, amplitude, period, phase in channels:
             w = 2 * np.pi / period
             c, s = np.cos(w * t + phase), np.sin(w * t + phase)
+            if changing:   # d/dt (k A c), d2/dt2 (k A c); k = 1, dk = ddk = 0: as below
+                kA, dkA, ddkA = k * amplitude, dk * amplitude, ddk * amplitude
+                angle.append(mean + kA * c)
+                rate.append(-kA * w * s + dkA * c)
+                accel.append(-kA * w * w * c - 2.0 * dkA * w * s + ddkA * c)
+                continue
+            amplitude = self.sway_scale * amplitude
             angle.append(mean + amplitude * c)
             rate.append(-amplitude * w * s)
             accel.append(-amplitude * w * w * c)
@@ -114,11 +145,17 @@ class ShipSwayMotion(GimbalRates):
 
     def sway_centre(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sway-centre position (m), velocity (m/s), acceleration (m/s^2) in t; (N, 3)."""
-        A = np.asarray(self.linear_amplitude)
+        A = self.sway_scale * np.asarray(self.linear_amplitude)
         w = 2 * np.pi / np.asarray(self.linear_period)
         arg = w * t[:, None] + np.asarray(self.linear_phase)
         sine = np.sin(arg)
-        return A * sine, A * w * np.cos(arg), -A * w * w * sine
+        if not self.sway_scale_changes:
+            return A * sine, A * w * np.cos(arg), -A * w * w * sine
+        k, dk, ddk = (x[:, None] * np.asarray(self.linear_amplitude)
+                      for x in self.sway_scale_at(t))            # k A, k' A, k'' A
+        cosine = np.cos(arg)
+        return (k * sine, k * w * cosine + dk * sine,
+                -k * w * w * sine + 2.0 * dk * w * cosine + ddk * sine)
 
 
 REFERENCE_HULL = ((18.0, 90.0, 8.0), 5.01e6, (3.41e9, 1.62e8, 3.52e9))

@@ -71,7 +71,7 @@ STALL_CATCH_UP = 2.0
 STALL_CATCH_UP x d (s), at up to 1 + 2.19 / STALL_CATCH_UP times its scheduled rate."""
 
 
-def _smoothstep(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def smoothstep(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The septic smoothstep S(x) = 35x^4 - 84x^5 + 70x^6 - 20x^7 on [0, 1] (0 before, 1
     after; its first three derivatives vanish at both ends), its derivatives
     S'(x) = 140 x^3 (1 - x)^3 and S''(x) = 420 x^2 (1 - x)^2 (1 - 2x), and its integral
@@ -101,12 +101,12 @@ def stalled(motion: GimbalMotion, stalls: tuple[tuple[float, float], ...]) -> Gi
         tau, w, dw = t.copy(), np.ones_like(t), np.zeros_like(t)
         for start, duration in stalls:
             for sign, edge in ((1.0, start), (-1.0, start + duration)):    # the stop
-                value, slope, _, integral = _smoothstep((t - edge) / STALL_RAMP)
+                value, slope, _, integral = smoothstep((t - edge) / STALL_RAMP)
                 tau -= sign * STALL_RAMP * integral
                 w -= sign * value
                 dw -= sign * slope / STALL_RAMP
             catch_up = STALL_CATCH_UP * duration                           # the lag made up
-            value, slope, curvature, _ = _smoothstep((t - start - duration) / catch_up)
+            value, slope, curvature, _ = smoothstep((t - start - duration) / catch_up)
             tau += duration * value
             w += duration / catch_up * slope
             dw += duration / catch_up ** 2 * curvature

@@ -77,6 +77,8 @@ class ScenarioConfig:
         values = {f.name: getattr(self, f.name) for f in fields(self)}
         if duration is not None:
             values["duration"] = float(duration)
+            if values["duration"] < self.duration:   # a shorter run: what it reaches
+                values["schedule"] = self.schedule.within(values["duration"], self.duration)
         if imu_rate is not None:
             values["imu_rate"] = float(imu_rate)
         config = ScenarioConfig(**values)

@@ -28,7 +28,7 @@ UNITS = {
     "yaw_mean": "_deg", "yaw_amplitude": "_deg", "yaw_period": "_s", "yaw_phase": "_deg",
     "pitch_amplitude": "_deg", "pitch_period": "_s", "pitch_phase": "_deg",
     "roll_amplitude": "_deg", "roll_period": "_s", "roll_phase": "_deg",
-    "linear_amplitude": "_m", "linear_period": "_s", "linear_phase": "_deg",
+    "linear_amplitude": "_m", "linear_period": "_s", "linear_phase": "_deg", "sway_scale": "",
     "lever_arm_b": "_m", "gimbal_outer_rate": "_deg_s", "gimbal_inner_rate": "_deg_s",
     "antenna_b": "_m", "hull_size": "_m",
     # azimuth indexer (rotor_inertia kg m^2; schedule rows [time_s, angle_deg])

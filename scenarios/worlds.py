@@ -47,7 +47,7 @@ def check_range(field: str, value: float, low: float, high: float, unit: str,
     ok = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
     if not ok:
         bracket = "(" if low_open else "["
-        raise ValueError(f"{field} = {value:g} {unit} is out of range {bracket}{low:g}, "
+        raise ValueError(f"{field} = {value:g}{' ' * bool(unit)}{unit} is out of range {bracket}{low:g}, "
                          f"{high:g}]")
 
 
@@ -214,6 +214,7 @@ class SwayingShip(Prescribed):
     gives = frozenset({"antenna", "hull"})
     carries_indexer = True
     look_between = True
+    schedulable = ("sway_scale",)
 
     @property
     def motion_type(self):
@@ -246,6 +247,16 @@ class SwayingShip(Prescribed):
         for name in ("gimbal_outer_rate", "gimbal_inner_rate"):
             check_range(f"motion.{name}_deg_s", getattr(m, name) / deg, -360.0, 360.0,
                         "deg/s")
+        check_range("motion.sway_scale", m.sway_scale, 0.0, 10.0, "")
+        for i, entry in enumerate(config.schedule.entries):
+            value = dict(entry.values).get("sway_scale") if entry.section == "motion" else None
+            if value is None:
+                continue
+            where = entry.label or f"schedule[{i}]"
+            check_range(f"{where}.motion.sway_scale", value, 0.0, 10.0, "")
+            if entry.ramp <= 0.0:
+                raise ValueError(f"{where}.ramp_s = {entry.ramp:g} s must be > 0 for "
+                                 "motion.sway_scale (a step would make the hull jump)")
 
     def camera(self, config):
         length = max(config.motion.hull_size)
@@ -256,7 +267,8 @@ class SwayingShip(Prescribed):
         motion = config.motion
         if config.random_linear_phase:
             motion = replace(motion, linear_phase=tuple(rng.uniform(0.0, 2 * np.pi, 3)))
-        return motion
+        changes = tuple(config.schedule.changes("motion", "sway_scale"))
+        return replace(motion, sway_scale_changes=changes) if changes else motion
 
     def scene(self, motion):
         from aligngym.models.ship import ShipWorld

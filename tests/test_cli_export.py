@@ -85,7 +85,8 @@ def test_errors_on_the_file_match_the_drawn_biases(files):
 
 @pytest.mark.parametrize("args, expected", [
     (["simulate", "no-such-scenario", "--out", "x.npz"],
-     "valid choices: figure8-gps, figure8-gps-paper, ring-road-odometer, ship-sway-rotary, "
+     "valid choices: figure8-gps, figure8-gps-changing, figure8-gps-paper, "
+     "ring-road-odometer, ship-sway-rotary, ship-sway-rotary-changing, "
      "ship-sway-rotary-paper, ship-waves-rotary, static-large-azimuth"),
     (["simulate", "ship-sway-rotary", "--duration", "-5", "--out", "x.npz"], "--duration"),
     (["simulate", "ship-sway-rotary", "--imu-rate", "0", "--out", "x.npz"], "--imu-rate"),

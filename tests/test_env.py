@@ -27,7 +27,11 @@ QUICK = {SHIP_ID: SHIP_QUICK, "aligngym/ShipWavesRotary-v1": SHIP_QUICK,
          "aligngym/Figure8GpsPaper-v1": {"coarse_duration": 20.0},
          "aligngym/UsvMemsSwing-v1": {"coarse_duration": 20.0},
          "aligngym/UsvMemsWaves-v1": {"coarse_duration": 20.0},
-         "aligngym/StaticLargeAzimuth-v1": {}}
+         "aligngym/StaticLargeAzimuth-v1": {},
+         "aligngym/ShipSwayRotaryChanging-v1": SHIP_QUICK,
+         "aligngym/Figure8GpsChanging-v1": {"coarse_duration": 20.0},
+         "aligngym/UsvMemsSwingChanging-v1": {"coarse_duration": 20.0},
+         "aligngym/StaticLargeAzimuthChanging-v1": {}}
 SHORT = {"episode_length": 20.0, "settings": SHIP_QUICK}
 
 
@@ -51,7 +55,9 @@ def test_check_env(env_id):
 ADAPTIVE = {"aligngym/Figure8Gps-v1": "swakf", "aligngym/Figure8GpsPaper-v1": "swakf",
             "aligngym/RingRoadOdometer-v1": "sgkf",
             "aligngym/UsvMemsSwing-v1": "stukf",   # 004 has no adaptive filter
-            "aligngym/UsvMemsWaves-v1": "stukf"}
+            "aligngym/UsvMemsWaves-v1": "stukf",
+            "aligngym/Figure8GpsChanging-v1": "swakf",
+            "aligngym/UsvMemsSwingChanging-v1": "stukf"}
 
 
 def rollout(env_id, seed, steps=12, **kwargs):

@@ -49,8 +49,9 @@ constant in the hull frame (no modulation), a calm-sea R, fading factors on R.""
 
 def sway_peak_velocity(motion) -> np.ndarray:
     """Peak linear sway velocity A_j 2 pi / T_j (3,) m/s per local axis E, N, U of the
-    prescribed sway (``models.ship.ShipSwayMotion``)."""
-    return (np.asarray(motion.linear_amplitude) * 2 * np.pi
+    prescribed sway (``models.ship.ShipSwayMotion``) at its sway scale (the file's: a
+    [[schedule]]'s changes are not known to the filter)."""
+    return (motion.sway_scale * np.asarray(motion.linear_amplitude) * 2 * np.pi
             / np.asarray(motion.linear_period))
 
 
