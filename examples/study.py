@@ -1,25 +1,36 @@
 """The learned-tuning study of one scenario: does an agent that retunes a filter beat the
-paper's own adaptive filters on episodes it never saw?
+paper's own adaptive filters on episodes it never saw, and how much is there to gain?
 
 Arms, each scored on the first ``--test`` episodes of the test split (seeds no arm saw):
-- every filter of the scenario's experiment as tuned (the zero action);
+- every filter of the scenario's experiment as tuned (the zero action), and the
+  textbook adaptive baseline, the Sage-Husa filter on the base filter's model;
 - the base filter (the KF, or the EKF / classic KF on the nonlinear models), as tuned;
 - the base filter with the best constant retune: cross-entropy over the action on the
   first ``--ce-episodes`` training episodes;
-- the base filter retuned at every epoch by a PPO policy (stable-baselines3) that acts on
-  the env's observation, trained for ``--ppo-steps`` steps on the first ``--train``
-  training episodes (the native vector env, 16 slots); ``--ppo-seeds``, ``--normalize``
-  (VecNormalize) and ``--reward`` (the reward both agents train on; every arm is scored
-  on the default) vary it.
+- on a scenario with a [[schedule]], the oracle: the base filter with the best constant
+  retune per segment of the schedule (it knows when the disturbance changes, not the
+  episode), cross-entropy over all segments' actions at once on the same training
+  episodes, from the best constant retune;
+- the base filter retuned at every epoch by a learned policy that acts on the env's
+  observation (``--algo``: PPO from stable-baselines3, recurrent PPO from sb3-contrib),
+  trained for ``--ppo-steps`` steps on the first ``--train`` training episodes (the
+  native vector env, 16 slots); ``--ppo-seeds``, ``--normalize`` (VecNormalize, its
+  statistics frozen for the test) and ``--reward`` (the reward the agents train on;
+  every arm is scored on the default) vary it;
+- your own agents (``--agent NAME=module.path:factory``).
 
 All episodes come from one episode bank (built first, in parallel). For each arm: the
 mean reward per epoch and the RMS final heading error with 95 % bootstrap intervals over
-the test episodes, the median final heading and the diverged count. Writes a JSON file
-and prints a Markdown table. Needs the extra: pip install -e '.[agents]'.
+the test episodes, the median final heading and the diverged count. With a schedule, the
+headroom (oracle minus best constant retune, 95 % paired bootstrap interval) and each
+arm's fraction of it; ``--headroom FILE`` records them in the leaderboard file. Writes a
+JSON file (``--out``, with the agents' learning curves) and prints Markdown tables. The
+learned arms need the extra: pip install -e '.[agents]'.
 
 Run: python examples/study.py SCENARIO [--train 128] [--test 50] [--ppo-steps 200000]
-     [--ppo-seeds 1] [--normalize] [--reward attitude] [--episode-length S] [--bank DIR]
-     [--out FILE.json]
+     [--ppo-seeds 1] [--algo ppo recurrent-ppo] [--normalize] [--reward attitude]
+     [--agent NAME=module.path:factory] [--episode-length S] [--bank DIR]
+     [--out FILE.json] [--headroom docs/study/headroom.json]
 """
 from __future__ import annotations
 
@@ -249,6 +260,30 @@ def sb3_vec_env(env: AlignmentVectorEnv):
     return AlignmentSb3()
 
 
+def tuned_actions(path: str) -> dict[str, np.ndarray]:
+    """The best constant retune (1, A) and the oracle's actions (S, A) an earlier study
+    of the same scenario found (its --out file; ``--tuned-from``), to score them again
+    without tuning them again."""
+    rows = json.loads(Path(path).read_text())["rows"]
+    found = {}
+    for r in rows:
+        if r["arm"].startswith("constant retune"):
+            found["constant"] = np.asarray([r["action"]], np.float32)
+        elif r["arm"].startswith("oracle"):
+            found["oracle"] = np.asarray(r["actions"], np.float32)
+    return found
+
+
+def load_agent(target: str):
+    """The factory "module.path:name" names (``--agent``); a one-line error otherwise."""
+    import importlib
+    module, _, name = target.partition(":")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise SystemExit(f"--agent {target!r}: {exc} (write NAME=module.path:factory)")
+
+
 AGENTS = {"ppo": "PPO policy", "recurrent-ppo": "recurrent PPO policy"}
 """The learned arms (stable-baselines3; recurrent PPO from sb3-contrib)."""
 
@@ -328,6 +363,15 @@ def main() -> None:
     parser.add_argument("--algo", nargs="+", default=["ppo"], choices=sorted(AGENTS),
                         help="the learned agents (recurrent-ppo: sb3-contrib's LSTM PPO, "
                              "for a disturbance that one epoch does not show)")
+    parser.add_argument("--tuned-from", default=None, metavar="STUDY.json",
+                        help="take the best constant retune and the oracle's actions from "
+                             "an earlier study of the scenario (its --out file) instead of "
+                             "tuning them again")
+    parser.add_argument("--agent", action="append", default=[],
+                        metavar="NAME=module.path:factory",
+                        help="your own agent, an arm named NAME: factory(train_env) trains "
+                             "on the training split's vector env (16 slots, same-step "
+                             "autoreset) and returns policy(obs, k) -> actions (n, A)")
     parser.add_argument("--reward", default="attitude", choices=REWARDS,
                         help="the reward the agents train on (scoring uses the default)")
     parser.add_argument("--normalize", action="store_true",
@@ -367,9 +411,13 @@ def main() -> None:
         tuned[f] = score(env, test, constant(zero, len(test)))
         env.close()
     rows = [summarise("as tuned", f, tuned[f], tuned[base]) for f in filters]
+    earlier = tuned_actions(args.tuned_from) if args.tuned_from else {}
     start = time.perf_counter()
-    action, history = cross_entropy(make, train[:args.ce_episodes], args.ce_iterations,
-                                    args.ce_population, args.reward)
+    if "constant" in earlier:
+        action, history = earlier["constant"], []
+    else:
+        action, history = cross_entropy(make, train[:args.ce_episodes], args.ce_iterations,
+                                        args.ce_population, args.reward)
     env = make(len(test), "test")
     trained_on = f", {args.reward} reward" if args.reward != "attitude" else ""
     best_constant = score(env, test, constant(action[0], len(test)))
@@ -387,10 +435,13 @@ def main() -> None:
     oracle = None
     if starts:                     # the oracle: a constant retune per segment of the schedule
         start = time.perf_counter()
-        actions, history = cross_entropy(
-            make, train[:args.ce_episodes], args.oracle_iterations, args.oracle_population,
-            args.reward, elite=max(3, args.oracle_population // 4), starts=starts,
-            initial=np.tile(action, (len(starts) + 1, 1)))
+        if "oracle" in earlier:
+            actions, history = earlier["oracle"], []
+        else:
+            actions, history = cross_entropy(
+                make, train[:args.ce_episodes], args.oracle_iterations,
+                args.oracle_population, args.reward, elite=max(3, args.oracle_population // 4),
+                starts=starts, initial=np.tile(action, (len(starts) + 1, 1)))
         env = make(len(test), "test")
         oracle = score(env, test, piecewise(actions, starts, len(test)))
         env.close()
@@ -399,6 +450,18 @@ def main() -> None:
                                             "segment_starts": starts,
                                             "train_reward": history,
                                             "wall_s": time.perf_counter() - start}))
+    for spec in args.agent:               # users' agents: NAME=module.path:factory
+        label, _, target = spec.partition("=")
+        start = time.perf_counter()
+        train_env = make(SLOTS, "train", autoreset_mode="SameStep", reward=args.reward)
+        policy = load_agent(target)(train_env)
+        trained = time.perf_counter() - start
+        train_env.close()
+        env = make(len(test), "test")
+        arms[label] = score(env, test, policy)
+        env.close()
+        rows.append(summarise(label, base, arms[label], tuned[base],
+                              {"agent": target, "wall_s": trained}))
     for algo in args.algo if args.ppo_steps > 0 else ():
         for seed in range(args.ppo_seeds):
             start = time.perf_counter()

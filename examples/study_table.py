@@ -19,18 +19,22 @@ def row(study: dict) -> str:
     tuned = [r for r in rows if r["arm"] == "as tuned"]
     best = max(tuned, key=lambda r: r["reward_per_epoch"][0])
     agents = {r["arm"].split(",")[0]: r for r in rows if r["arm"] != "as tuned"}
-    ce, ppo = agents["constant retune (CE)"], agents["PPO policy"]
-    def gain(r: dict) -> str:
+    ce, ppo = agents["constant retune (CE)"], agents.get("PPO policy")
+    def gain(r: dict | None) -> str:
+        if r is None:                  # a study without the PPO arm
+            return "-"
         g = r["reward_gain_vs_base"]
         return f"{g[0]:+.2f} [{g[1]:+.2f}, {g[2]:+.2f}]; {r['heading_rms_arcmin'][0]:.2f}'"
 
-    def beats(r: dict) -> str:
+    def beats(r: dict | None) -> str:
+        if r is None:
+            return "-"
         return "yes" if r["reward_gain_vs_base"][1] > best["reward_gain_vs_base"][2] else "no"
 
     return (f"| {study['scenario']} ({study['experiment']}) | `{best['filter']}` "
             f"{best['reward_per_epoch'][0]:.2f}; {best['heading_rms_arcmin'][0]:.2f}' | "
             f"`{ce['filter']}` {gain(ce)} | {gain(ppo)} | {study['train_episodes']} / "
-            f"{study['test_episodes']}, {ppo.get('ppo_steps', 0) // 1000}k, "
+            f"{study['test_episodes']}, {(ppo or {}).get('ppo_steps', 0) // 1000}k, "
             f"{study['wall_s'] / 60:.0f} min | {beats(ce)}, {beats(ppo)} |")
 
 def main() -> None:

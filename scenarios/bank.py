@@ -81,8 +81,9 @@ def _numbers_as_floats(value):
 
 def bank_key(experiment) -> dict:
     """What decides an experiment's prepared episodes (the bank's key, as JSON): its
-    settings, the scenario file's bytes, the simulation code and the versions of
-    aligngym, MuJoCo and NumPy."""
+    settings but those that concern the filters only (``Experiment.filter_settings``),
+    the scenario file's bytes, the simulation code and the versions of aligngym, MuJoCo
+    and NumPy."""
     import mujoco
     import numpy
     from importlib.metadata import PackageNotFoundError, version
@@ -93,7 +94,9 @@ def bank_key(experiment) -> dict:
     config = experiment.scenario_file()
     digest = hashlib.sha256(Path(config.source).read_bytes()).hexdigest()
     return json.loads(json.dumps({"experiment": type(experiment).__module__.rsplit(".", 1)[-1],
-                                  "settings": _numbers_as_floats(asdict(experiment)),
+                                  "settings": _numbers_as_floats(
+                                      {name: value for name, value in asdict(experiment).items()
+                                       if name not in experiment.filter_settings}),
                                   "scenario_sha256": digest,
                                   "code_sha256": simulation_code_sha256(),
                                   "aligngym": release, "mujoco": mujoco.__version__,

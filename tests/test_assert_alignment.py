@@ -20,8 +20,7 @@ CASES = {
     "ship-sway-rotary-changing": ("kf", 2, {}, 0.2, 0.01),                  # 0.096, 0.005
     "ship-waves-rotary": ("kf", 2, {"fine_duration": 120.0}, 3.0, 0.02),    # 1.3, 0.006
     "static-large-azimuth": ("ekf", 1, {"fine_duration": 300.0}, 9.0, 0.25),  # 4.5, 0.12
-    "static-large-azimuth-changing": ("ekf", 1, {"fine_duration": 300.0}, 50.0,
-                                      0.4),                                 # 24.4, 0.19
+    "static-large-azimuth-changing": ("ekf", 1, {}, 24.0, 0.35),             # 11.7, 0.16
     "usv-mems-swing": ("stukf", 1, {"fine_duration": 120.0}, 110.0, 4.0),   # 54, 1.8
     "usv-mems-swing-changing": ("stukf", 1, {"fine_duration": 540.0}, 60.0, 4.6),  # 29, 2.3
     "usv-mems-waves": ("stukf", 1, {"fine_duration": 120.0}, 35.0, 15.0),   # 17, 7.3

@@ -95,3 +95,18 @@ def test_the_ship_on_error_free_sensors_aligns_through_its_squall():
     assert np.all(np.abs(error) < 3 * sigma), (error / arcmin, sigma / arcmin)
     assert np.all(np.abs(error[:, :2]) < 0.01 * arcmin) and np.all(
         np.abs(error[:, 2]) < 0.5 * arcmin), error / arcmin
+
+
+def test_the_static_platforms_ekf_meets_the_vibration_burst():
+    """static-large-azimuth-changing, two episodes: the EKF's NIS (2 dof: the velocity)
+    under the compressor's vibration (1 mg/sqrt(Hz), 0.2 deg/sqrt(h); 170-300 s) is more
+    than 10x its NIS before (50-150 s; measured 43x: the paper's R is pessimistic for
+    the quiet IMU, NIS 0.03, and far too small for the shaken one)."""
+    experiment = experiment_for("static-large-azimuth-changing", fine_duration=300.0)
+    episodes = [experiment.prepare_episode(s) for s in episode_seeds(5, 2)]
+    name, start = next(iter(experiment.start_errors(episodes).items()))
+    result = run_filter("ekf", name, start, episodes, experiment).result
+    t = result.t[1:] - result.t[0]
+    quiet = np.nanmean(result.nis[:, (t > 50.0) & (t <= 150.0)])
+    shaken = np.nanmean(result.nis[:, (t > 170.0) & (t <= 300.0)])
+    assert shaken > 10 * quiet, (quiet, shaken)

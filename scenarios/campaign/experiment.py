@@ -205,6 +205,12 @@ class Experiment(ABC):
     """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
     state_count: int = 0
     """Dimension of the experiment's fine-alignment state."""
+    filter_settings: frozenset[str] = frozenset({"default_filters", "rms_window",
+                                                 "heading_threshold_arcmin"})
+    """Settings that concern the filters or the analysis only: the prepared episodes do
+    not depend on them, and the episode bank's key leaves them out (retuning a filter
+    never simulates again; tests/test_bank_key.py checks that ``prepare_episode`` reads
+    none of them)."""
     observation_features: frozenset[str] = frozenset()
     """What its model gives the filters (keys of ``adaptation.OBSERVATION_FEATURES``:
     e.g. "axes", the measurement's local-level axes); a filter needing more is refused

@@ -160,6 +160,9 @@ class Paper000Experiment(Experiment):
     requires = (SensorTable("odometer"), StrapdownImu())
     state_count = 18
     observation_features = frozenset({"conditionally-linear"})
+    filter_settings = Experiment.filter_settings | {
+        "attitude_sigma_deg", "feedback_sigma_deg", "measurement_sigma", "position_sigma",
+        "scale_sigma"}
 
     @property
     def episode_class(self):

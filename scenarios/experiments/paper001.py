@@ -154,6 +154,7 @@ class Paper001Experiment(Experiment):
     model_variants = ("position-velocity",)
     state_count = 15
     observation_features = frozenset({"conditionally-linear", "directions"})
+    filter_settings = Experiment.filter_settings | {"accel_noise_density", "attitude_sigma_deg"}
     starts = (START,)
 
     @property

@@ -99,6 +99,8 @@ class Paper002Experiment(Experiment):
     filter_keys = ("euler_sigma", "initial_covariance")
     state_count = STATE_COUNT
     observation_features = frozenset({"selection-H"})
+    filter_settings = frozenset({"feedback_sigma_deg", "gyro_bias_prior_deg_h",
+                                 "heading_threshold_arcmin", "rms_window"})
     default_filters = ("ekf", "ukf", "sghkf-2", "sghkf-4")
     starts = (START,)
 

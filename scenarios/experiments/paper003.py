@@ -194,6 +194,8 @@ class Paper003Experiment(Experiment):
     state_count = 12
     observation_features = frozenset({"selection-H", "unit-selection-H", "axes",
                                       "conditionally-linear"})
+    filter_settings = Experiment.filter_settings | {
+        "attitude_sigma_deg", "measurement_sigma", "rho", "start_sway_sigma", "velocity_sigma"}
     starts = STARTS
 
     @property

@@ -159,6 +159,8 @@ class Paper004Experiment(Experiment):
     requires = (SensorTable("gps"), StepOnFixes("GNSS"))
     model_variants = ("st", "st-linear")
     state_count = 15
+    filter_settings = Experiment.filter_settings | {
+        "accel_bias_walk", "gyro_bias_walk", "position_sigma", "velocity_sigma"}
 
     def __post_init__(self) -> None:
         super().__post_init__()          # every setting's type, choices and range
