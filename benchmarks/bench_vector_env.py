@@ -2,7 +2,10 @@
 against gymnasium's AsyncVectorEnv of N single envs (one process each), steps per second
 of the N slots together after the reset, both resetting from the same episode bank; and
 one env's reset from the bank against a fresh simulation.
-Run: python benchmarks/bench_vector_env.py [--envs 16] [--steps 200] [--scenario ID]"""
+With slots that end at different times (``--groups``: the slots' episodes end in G
+groups at G different steps; 16 groups of one is the worst case) as well as aligned.
+Run: python benchmarks/bench_vector_env.py [--envs 16] [--steps 200] [--scenario ID]
+     [--groups 4 16]"""
 from __future__ import annotations
 
 import argparse
@@ -17,9 +20,20 @@ from aligngym.scenarios.bank import EpisodeBank, split_seeds
 from aligngym.scenarios.experiments import experiment_for
 
 
-def steps_per_second(envs, steps: int) -> float:
+def steps_per_second(envs, steps: int, groups: int = 1) -> float:
+    """Steps per second of all slots together over ``steps`` steps after the reset.
+    groups > 1: the slots end at different times: after the reset, group g's slots are
+    reset again at step g (groups of num_envs / groups slots), so that the groups'
+    episodes end and restart at different steps (same-step autoreset), as diverging
+    episodes make them; the native vector env runs one cohort per group."""
     envs.reset(seed=0)
     actions = np.zeros(envs.action_space.shape, np.float32)
+    n = envs.num_envs
+    for g in range(1, groups):
+        mask = np.zeros(n, bool)
+        mask[g * n // groups:(g + 1) * n // groups] = True
+        envs.step(actions)
+        envs.reset(options={"reset_mask": mask})
     start = time.perf_counter()
     for _ in range(steps):
         envs.step(actions)
@@ -34,9 +48,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--scenario", default="ship-sway-rotary")
     parser.add_argument("--estimator", default="kf")
+    parser.add_argument("--groups", type=int, nargs="*", default=[4, 16],
+                        help="also measure slots ending in this many groups (mixed ends)")
     args = parser.parse_args()
     env_id = "aligngym/" + "".join(w.capitalize() for w in args.scenario.split("-")) + "-v1"
-    length = float(args.steps + 10)
+    length = float(max(20, args.steps // 2))   # every slot ends (and restarts) once
     with tempfile.TemporaryDirectory() as bank:
         kwargs = dict(estimator=args.estimator, episode_length=length, bank=bank,
                       split="train", split_episodes=args.envs)
@@ -53,13 +69,17 @@ def main() -> None:
                 env.reset(options={"episode_seed": s})
             print(f"reset from {name}: {(time.perf_counter() - start) / 3 * 1e3:.0f} ms")
             env.close()
-        native = steps_per_second(gym.make_vec(env_id, num_envs=args.envs, **kwargs),
-                                  args.steps)
-        print(f"native vector env, N = {args.envs}: {native:.0f} steps/s")
-        asynchronous = steps_per_second(gym.make_vec(
-            env_id, num_envs=args.envs, vectorization_mode="async", **kwargs), args.steps)
-        print(f"async vector env, N = {args.envs}: {asynchronous:.0f} steps/s")
-        print(f"native / async: {native / asynchronous:.1f}x")
+        for groups in (1, *args.groups):
+            ends = "aligned" if groups == 1 else f"ends in {groups} groups"
+            native = steps_per_second(gym.make_vec(
+                env_id, num_envs=args.envs, autoreset_mode="SameStep", **kwargs),
+                args.steps, groups)
+            print(f"native vector env, N = {args.envs}, {ends}: {native:.0f} steps/s")
+            asynchronous = steps_per_second(gym.make_vec(
+                env_id, num_envs=args.envs, vectorization_mode="async",
+                vector_kwargs={"autoreset_mode": "SameStep"}, **kwargs), args.steps, groups)
+            print(f"async vector env, N = {args.envs}, {ends}: {asynchronous:.0f} steps/s")
+            print(f"native / async, {ends}: {native / asynchronous:.1f}x")
 
 
 if __name__ == "__main__":

@@ -50,6 +50,11 @@ headroom.
 """
 
 
+SEARCH = ("train", "test", "ce_episodes", "ce_iterations", "ce_population",
+          "oracle_iterations", "oracle_population", "ppo_steps", "ppo_seeds")
+"""The study's options that a reproduction of an entry needs."""
+
+
 def scenario_section(entry: dict, study: dict | None, figures: Path | None) -> str:
     """The Markdown of one scenario: its headroom line, its arms' table and, where the
     study has learned arms, its learning-curve figure (written to figures)."""
@@ -57,10 +62,16 @@ def scenario_section(entry: dict, study: dict | None, figures: Path | None) -> s
     share = entry["headroom"] / abs(entry["default"])
     lines = [f"## {entry['scenario']}", ""]
     if study is not None:
-        lines += [f"Experiment {study['experiment']}, base filter `{study['rows'][0]['filter']}`"
-                  f" (as tuned: {entry['default']:.3f}); {study['train_episodes']} training "
-                  f"episodes, {entry['episodes']} test; {study['wall_s'] / 60:.0f} min on "
-                  "two cores.", ""]
+        base = next(r["filter"] for r in study["rows"]
+                    if r["arm"].startswith("constant retune"))
+        lines += [f"Experiment {study['experiment']}, base filter `{base}` (as tuned: "
+                  f"{entry['default']:.3f}); {study['train_episodes']} training episodes, "
+                  f"{entry['episodes']} test; {study['wall_s'] / 60:.0f} min on two cores.", ""]
+        if "arguments" in study:
+            a = study["arguments"]
+            lines += ["Run: `python examples/study.py " + " ".join(
+                f"--{k.replace('_', '-')} {v}" for k, v in a.items()
+                if k in SEARCH and v is not None) + f" {entry['scenario']}`", ""]
     lines += [f"Headroom: **{entry['headroom']:+.3f} [{lo:+.3f}, {hi:+.3f}]** per epoch, "
               f"{share:.0%} of the base filter's reward as tuned.", "",
               "| arm | reward / epoch | fraction of the headroom [95 % CI] |",
@@ -123,6 +134,7 @@ def main() -> None:
     for entry in entries:
         text += "\n" + scenario_section(entry, studies.get(entry["scenario"]),
                                         args.out.parent)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
     print(f"wrote {args.out} ({len(entries)} scenarios)")
 

@@ -482,11 +482,12 @@ def main() -> None:
            args.episode_length, "train_episodes": args.train, "test_episodes": args.test,
            "test_seeds": [test[0], test[-1]], "train_reward": args.reward,
            "ppo_seeds": args.ppo_seeds, "normalize": args.normalize, "bank_s": bank_s,
-           "wall_s": time.perf_counter() - clock, "rows": rows}
+           "wall_s": time.perf_counter() - clock, "arguments": vars(args), "rows": rows}
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
     if oracle is not None:
-        entry = headroom(args.scenario, tuned[base], best_constant, oracle, arms)
+        entry = headroom(args.scenario, tuned[base], best_constant, oracle,
+                         {**arms, "oracle": oracle})
         out["headroom"] = entry
         if args.headroom:
             record_headroom(Path(args.headroom), entry)
