@@ -51,7 +51,7 @@ headroom.
 
 
 SEARCH = ("train", "test", "ce_episodes", "ce_iterations", "ce_population",
-          "oracle_iterations", "oracle_population", "ppo_steps", "ppo_seeds")
+          "oracle_iterations", "oracle_population", "ppo_steps", "ppo_seeds", "normalize")
 """The study's options that a reproduction of an entry needs."""
 
 
@@ -69,14 +69,20 @@ def scenario_section(entry: dict, study: dict | None, figures: Path | None) -> s
                   f"{entry['episodes']} test; {study['wall_s'] / 60:.0f} min on two cores.", ""]
         if "arguments" in study:
             a = study["arguments"]
-            lines += ["Run: `python examples/study.py " + " ".join(
-                f"--{k.replace('_', '-')} {v}" for k, v in a.items()
-                if k in SEARCH and v is not None) + f" {entry['scenario']}`", ""]
+            options = [f"--{k.replace('_', '-')}" + ("" if v is True else f" {v}")
+                       for k, v in a.items() if k in SEARCH and v not in (None, False)]
+            lines += ["Run: `python examples/study.py " + " ".join(options)
+                      + f" {entry['scenario']}`" + (
+                          " (the best constant retune and the oracle's actions from the "
+                          "same study without agents, `--tuned-from`)"
+                          if a.get("tuned_from") else ""), ""]
     lines += [f"Headroom: **{entry['headroom']:+.3f} [{lo:+.3f}, {hi:+.3f}]** per epoch, "
               f"{share:.0%} of the base filter's reward as tuned.", "",
               "| arm | reward / epoch | fraction of the headroom [95 % CI] |",
               "| --- | ---: | --- |"]
-    order = sorted(entry["arms"].items(), key=lambda kv: -kv[1]["score"])
+    arms = {"oracle": {"score": entry["oracle"], "fraction": 1.0,
+                       "fraction_ci95": [1.0, 1.0]}, **entry["arms"]}
+    order = sorted(arms.items(), key=lambda kv: -kv[1]["score"])
     for arm, a in order:
         flo, fhi = a["fraction_ci95"]
         lines.append(f"| {arm} | {a['score']:.3f} | {a['fraction']:+.2f} [{flo:+.2f}, "
