@@ -70,7 +70,8 @@ def scenario_section(entry: dict, study: dict | None, figures: Path | None) -> s
         if "arguments" in study:
             a = study["arguments"]
             options = [f"--{k.replace('_', '-')}" + ("" if v is True else f" {v}")
-                       for k, v in a.items() if k in SEARCH and v not in (None, False)]
+                       for k, v in a.items()
+                       if k in SEARCH and v is not None and v is not False]
             lines += ["Run: `python examples/study.py " + " ".join(options)
                       + f" {entry['scenario']}`" + (
                           " (the best constant retune and the oracle's actions from the "
@@ -84,6 +85,9 @@ def scenario_section(entry: dict, study: dict | None, figures: Path | None) -> s
                        "fraction_ci95": [1.0, 1.0]}, **entry["arms"]}
     order = sorted(arms.items(), key=lambda kv: -kv[1]["score"])
     for arm, a in order:
+        if a["fraction"] is None:                       # no headroom to close
+            lines.append(f"| {arm} | {a['score']:.3f} | n/a |")
+            continue
         flo, fhi = a["fraction_ci95"]
         lines.append(f"| {arm} | {a['score']:.3f} | {a['fraction']:+.2f} [{flo:+.2f}, "
                      f"{fhi:+.2f}] |")

@@ -3,7 +3,8 @@ paper's own adaptive filters on episodes it never saw, and how much is there to 
 
 Arms, each scored on the first ``--test`` episodes of the test split (seeds no arm saw):
 - every filter of the scenario's experiment as tuned (the zero action), and the
-  textbook adaptive baseline, the Sage-Husa filter on the base filter's model;
+  textbook adaptive baseline, the Sage-Husa filter, where the base filter runs on the
+  experiment's own model (not paper 001's lckf, a model variant);
 - the base filter (the KF, or the EKF / classic KF on the nonlinear models), as tuned;
 - the base filter with the best constant retune: cross-entropy over the action on the
   first ``--ce-episodes`` training episodes;
@@ -125,9 +126,12 @@ def headroom(scenario: str, default: dict, best_constant: dict, oracle: dict,
         r = result["reward"]
         with np.errstate(divide="ignore", invalid="ignore"):
             ratios = (r - c)[resamples].mean(1) / gap
+            fraction = (r - c).mean() / (o - c).mean()
+        usable = np.isfinite(ratios).any() and np.isfinite(fraction)   # no headroom: None
         entry["arms"][arm] = {
-            "score": float(r.mean()), "fraction": float((r - c).mean() / (o - c).mean()),
-            "fraction_ci95": np.nanpercentile(ratios, [2.5, 97.5]).tolist()}
+            "score": float(r.mean()), "fraction": float(fraction) if usable else None,
+            "fraction_ci95": np.nanpercentile(ratios, [2.5, 97.5]).tolist() if usable
+            else None}
     return entry
 
 
@@ -148,6 +152,9 @@ def print_headroom(entry: dict) -> None:
     print("| arm | reward / epoch | fraction of the headroom [95 % CI] |")
     print("| --- | --- | --- |")
     for arm, a in entry["arms"].items():
+        if a["fraction"] is None:                       # no headroom to close
+            print(f"| {arm} | {a['score']:.3f} | n/a |")
+            continue
         flo, fhi = a["fraction_ci95"]
         print(f"| {arm} | {a['score']:.3f} | {a['fraction']:+.2f} [{flo:+.2f}, {fhi:+.2f}] |")
 

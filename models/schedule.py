@@ -54,8 +54,8 @@ class Schedule:
 
     def boundaries(self) -> tuple[float, ...]:
         """The times (s, sorted, distinct) where a change starts or a ramp ends: the edges
-        of the segments within which every scheduled parameter is constant or ramps
-        linearly (an oracle that knows the schedule retunes at these)."""
+        of the segments within which every scheduled parameter is constant or on one
+        ramp (an oracle that knows the schedule retunes at these)."""
         edges = {e.time for e in self.entries} | {e.time + e.ramp for e in self.entries
                                                    if e.ramp > 0.0}
         return tuple(sorted(edges))

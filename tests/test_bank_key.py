@@ -17,9 +17,12 @@ SHORT = {"paper000": {"coarse_duration": 10.0, "fine_duration": 20.0},
          "paper003": {"coarse_duration": 10.0, "t_k1": 4.0, "t_k2": 10.0,
                       "fine_duration": 20.0},
          "paper004": {"coarse_duration": 5.0, "fine_duration": 20.0}}
-"""Short runs: which settings the preparation reads does not depend on the length."""
-VARIANTS = [("paper000", {}), ("paper001", {}), ("paper001", {"coarse": "moving"}),
-            ("paper001", {"setup": "paper"}), ("paper002", {}), ("paper003", {}),
+"""Short runs: which settings the preparation reads does not depend on the length (paper
+001's moving coarse alignment read none of the filter settings either when this test ran
+it once, 2026-12-06; it waits for the car to drive off at 270 s, too long a run for the
+suite)."""
+VARIANTS = [("paper000", {}), ("paper001", {}), ("paper001", {"setup": "paper"}),
+            ("paper002", {}), ("paper003", {}),
             ("paper003", {"setup": "paper"}), ("paper004", {}),
             ("paper004", {"case": "consistency"})]
 

@@ -125,14 +125,14 @@ def test_a_sensor_schedule_leaves_the_base_scenarios_truth_and_ideal_data(name, 
     from aligngym.scenarios.config import load_scenario
     from aligngym.scenarios.registry import DATA_DIR
     from aligngym.scenarios.simulate import simulate
-    changing = load_scenario(name).with_options(duration=400.0)    # after the outage
+    changing = load_scenario(name).with_options(duration=310.0)    # the first change in
     text = (DATA_DIR / f"{name.removesuffix('-changing')}.toml").read_text()
     if changing.gps is not None and changing.gps.outages:
         text = text.replace('preset = "rtk"', 'preset = "rtk"\noutages_s = '
                             + str([list(w) for w in changing.gps.outages]))
     path = tmp_path / "base.toml"
     path.write_text(text)
-    base = load_scenario(str(path)).with_options(duration=400.0)
+    base = load_scenario(str(path)).with_options(duration=310.0)
     assert base.gps == changing.gps
     ideal = simulate(changing, seed=2, ideal=True).arrays()
     for key, value in simulate(base, seed=2, ideal=True).arrays().items():

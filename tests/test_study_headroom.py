@@ -62,3 +62,16 @@ def test_the_headroom_and_each_arms_fraction_of_it(study, tmp_path):
     study.record_headroom(path, {**entry, "scenario": "a"})
     saved = json.loads(path.read_text())
     assert [e["scenario"] for e in saved] == ["a", "x"] and saved[1]["headroom"] == 3.0
+
+
+def test_no_headroom_gives_no_fraction_and_valid_json(study, tmp_path):
+    """An oracle that never beat its starting point (the best constant, on every
+    episode): headroom 0 and no fraction (None), never NaN in the leaderboard file."""
+    c = np.linspace(-12.0, -8.0, 20)
+    arms = {"best constant": {"reward": c}, "x": {"reward": c + 0.1}}
+    entry = study.headroom("y", arms["x"], arms["best constant"], {"reward": c.copy()}, arms)
+    assert entry["headroom"] == 0.0
+    assert entry["arms"]["x"]["fraction"] is None and entry["arms"]["x"]["fraction_ci95"] is None
+    path = tmp_path / "headroom.json"
+    study.record_headroom(path, entry)
+    assert json.loads(path.read_text())[0]["arms"]["x"]["fraction"] is None
