@@ -429,7 +429,7 @@ def main() -> None:
     trained_on = f", {args.reward} reward" if args.reward != "attitude" else ""
     best_constant = score(env, test, constant(action[0], len(test)))
     rows.append(summarise("constant retune (CE)" + trained_on, base, best_constant,
-                          tuned[base], {"action": action[0].round(3).tolist(),
+                          tuned[base], {"action": action[0].tolist(),
                                         "train_reward": history,
                                         "wall_s": time.perf_counter() - start}))
     env.close()
@@ -453,7 +453,7 @@ def main() -> None:
         oracle = score(env, test, piecewise(actions, starts, len(test)))
         env.close()
         rows.append(summarise("oracle: constant per segment" + trained_on, base, oracle,
-                              tuned[base], {"actions": actions.round(3).tolist(),
+                              tuned[base], {"actions": actions.tolist(),
                                             "segment_starts": starts,
                                             "train_reward": history,
                                             "wall_s": time.perf_counter() - start}))
