@@ -165,12 +165,15 @@ def constant(action: np.ndarray, n: int):
 
 
 def piecewise(actions: np.ndarray, starts: list[int], n: int):
-    """The policy that takes actions[j] (S, A) in every slot during segment j: steps
-    [starts[j - 1], starts[j]) (starts: the S - 1 first steps of segments 1 ..)."""
+    """The policy of n slots that takes, during segment j (steps [starts[j - 1],
+    starts[j]); starts: the S - 1 first steps of segments 1 ..), actions[j] in every
+    slot (actions (S, A)) or actions[i, j] in slot i (actions (n, S, A))."""
     actions = np.asarray(actions, np.float32)
 
     def policy(obs, k: int) -> np.ndarray:
         j = int(np.searchsorted(starts, k, side="right"))
+        if actions.ndim == 3:
+            return actions[:, j]
         return np.broadcast_to(actions[j], (n, actions.shape[1]))
     return policy
 
@@ -207,10 +210,8 @@ def cross_entropy(make, seeds: list[int], iterations: int, population: int,
         candidates = np.clip(mean + std * rng.standard_normal((population, mean.size)), -1, 1)
         candidates[0] = mean
         slots = np.repeat(candidates.reshape((population,) + shape), n, axis=0)  # (P n, S, A)
-        policy = lambda obs, k, a=slots.astype(np.float32): a[  # noqa: E731
-            :, int(np.searchsorted(starts, k, side="right"))]
-        scores = score(env, list(seeds) * population, policy)["reward"].reshape(
-            population, n).mean(1)
+        scores = score(env, list(seeds) * population, piecewise(
+            slots, list(starts), n * population))["reward"].reshape(population, n).mean(1)
         if scores.max() > best_score:
             best, best_score = candidates[np.argmax(scores)], float(scores.max())
         top = candidates[np.argsort(scores)[-elite:]]
@@ -220,8 +221,9 @@ def cross_entropy(make, seeds: list[int], iterations: int, population: int,
     return best.reshape(shape).astype(np.float32), history
 
 
-def sb3_vec_env(env: AlignmentVectorEnv):
-    """The native vector env (same-step autoreset) as a stable-baselines3 VecEnv."""
+def sb3_vec_env(env: AlignmentVectorEnv, curve: "LearningCurve | None" = None):
+    """The native vector env (same-step autoreset) as a stable-baselines3 VecEnv; curve:
+    records each finished episode's reward."""
     from stable_baselines3.common.vec_env import VecEnv
 
     class AlignmentSb3(VecEnv):
@@ -241,8 +243,8 @@ def sb3_vec_env(env: AlignmentVectorEnv):
         def step_wait(self):
             obs, reward, terminated, truncated, info = env.step(self._actions)
             done = terminated | truncated
-            if hasattr(self, "curve_tracker"):
-                self.curve_tracker.track(reward, done)
+            if curve is not None:
+                curve.track(reward, done)
             infos = [{} for _ in range(env.num_envs)]
             for i in np.flatnonzero(done):
                 infos[i] = {"terminal_observation": info["final_obs"][i],
@@ -296,16 +298,16 @@ AGENTS = {"ppo": "PPO policy", "recurrent-ppo": "recurrent PPO policy"}
 
 
 class LearningCurve:
-    """A VecEnv wrapper's record of the training: per finished episode, the training
+    """The record of a training on num_envs slots: per finished episode, the training
     step and its reward per epoch (the reward the agent trains on)."""
 
-    def __init__(self, vec, steps_per_episode: int) -> None:
-        self.vec, self.steps_per_episode, self.curve = vec, steps_per_episode, []
-        self._total, self._step = np.zeros(vec.num_envs), 0
+    def __init__(self, num_envs: int, steps_per_episode: int) -> None:
+        self.steps_per_episode, self.curve = steps_per_episode, []
+        self._total, self._step = np.zeros(num_envs), 0
 
     def track(self, reward: np.ndarray, done: np.ndarray) -> None:
         self._total += reward
-        self._step += self.vec.num_envs
+        self._step += self._total.size
         for i in np.flatnonzero(done):
             self.curve.append((self._step, float(self._total[i] / self.steps_per_episode)))
             self._total[i] = 0.0
@@ -317,8 +319,8 @@ def train_agent(algo: str, make, seed: int, args):
     its VecEnv and its learning curve ((training step, reward per epoch) per episode)."""
     from stable_baselines3.common.vec_env import VecNormalize
     env = make(SLOTS, "train", autoreset_mode="SameStep", reward=args.reward)
-    vec = sb3_vec_env(env)
-    vec.curve_tracker = LearningCurve(vec, env.episode_steps)
+    curve = LearningCurve(env.num_envs, env.episode_steps)
+    vec = sb3_vec_env(env, curve)
     outer = VecNormalize(vec, norm_obs=True, norm_reward=True, gamma=0.99) \
         if args.normalize else vec
     if algo == "ppo":
@@ -333,7 +335,7 @@ def train_agent(algo: str, make, seed: int, args):
     model.learn(total_timesteps=args.ppo_steps)
     if args.normalize:
         outer.training = False                 # frozen statistics from here on
-    return model, outer, vec.curve_tracker.curve
+    return model, outer, curve.curve
 
 
 def agent_policy(model, vec, n: int, algo: str):

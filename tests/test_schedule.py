@@ -18,6 +18,7 @@ from aligngym.scenarios.registry import DATA_DIR
 from aligngym.scenarios.simulate import simulate
 from aligngym.sensors.base import SensorTruth
 from aligngym.sensors.gps import GnssReceiver, GpsSpec
+from scenario_files import shipped_with
 
 
 def test_profile_steps_and_ramps_by_hand():
@@ -82,12 +83,6 @@ def test_gnss_errors_follow_the_scheduled_sigma_and_tails():
     assert beyond > 4 * 0.0027 * burst.size
 
 
-def scenario(tmp_path, name: str, duration: float, extra: str) -> str:
-    text = re.sub(r"duration_s = [0-9.]+", f"duration_s = {duration}",
-                  (DATA_DIR / f"{name}.toml").read_text())
-    path = tmp_path / f"{name}-{abs(hash(extra))}.toml"
-    path.write_text(text + extra)
-    return str(path)
 
 
 def test_a_schedule_to_the_same_values_changes_no_number(tmp_path):
@@ -101,8 +96,8 @@ gps.position_sigma_h_m = 2.5
 gps.velocity_sigma = 0.05
 imu.gyro_arw_deg_sqrt_h = 0.1
 """
-    plain = simulate(load_scenario(scenario(tmp_path, "usv-mems-swing", 60.0, "")), seed=3)
-    config = load_scenario(scenario(tmp_path, "usv-mems-swing", 60.0, same))
+    plain = simulate(load_scenario(shipped_with(tmp_path, "usv-mems-swing", 60.0, "")), seed=3)
+    config = load_scenario(shipped_with(tmp_path, "usv-mems-swing", 60.0, same))
     assert config.schedule
     scheduled = simulate(config, seed=3)
     for name, value in plain.arrays().items():
@@ -149,7 +144,7 @@ def test_an_imu_vibration_burst_is_white_noise_of_the_scheduled_density(tmp_path
     ("time_s = 10.0\n", "schedule[0] changes nothing"),
 ])
 def test_a_bad_entry_is_one_line_naming_it(tmp_path, entry, message):
-    path = scenario(tmp_path, "usv-mems-swing", 60.0, "\n[[schedule]]\n" + entry)
+    path = shipped_with(tmp_path, "usv-mems-swing", 60.0, "\n[[schedule]]\n" + entry)
     with pytest.raises(ConfigError) as info:
         load_scenario(path)
     assert message in str(info.value) and "\n" not in str(info.value)
@@ -166,9 +161,9 @@ def test_a_building_sea_is_the_physics_response_to_larger_waves(tmp_path):
     products, 6 %)."""
     building = "\n[[schedule]]\ntime_s = 20.0\nramp_s = 20.0\nmotion." \
                "significant_wave_height_m = 4.5\n"
-    calm = simulate(load_scenario(scenario(tmp_path, "ship-waves-rotary", 120.0, "")),
+    calm = simulate(load_scenario(shipped_with(tmp_path, "ship-waves-rotary", 120.0, "")),
                     seed=2, ideal=True)
-    rough = simulate(load_scenario(scenario(tmp_path, "ship-waves-rotary", 120.0,
+    rough = simulate(load_scenario(shipped_with(tmp_path, "ship-waves-rotary", 120.0,
                                             building)), seed=2, ideal=True)
     t = calm.truth.t
     before = t < 20.0

@@ -35,6 +35,8 @@ def test_segments_start_at_the_first_update_beyond_each_boundary(study):
     assert policy(None, 139)[1].tolist() == [0.0, 1.0, 2.0]
     assert policy(None, 140)[0].tolist() == [3.0, 4.0, 5.0]
     assert policy(None, 599).shape == (2, 3) and policy(None, 599)[0, 0] == 9.0
+    per_slot = study.piecewise(np.arange(24.0).reshape(2, 4, 3), starts, 2)
+    assert per_slot(None, 150).tolist() == [[3.0, 4.0, 5.0], [15.0, 16.0, 17.0]]
 
 
 def test_the_headroom_and_each_arms_fraction_of_it(study, tmp_path):

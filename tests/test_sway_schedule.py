@@ -15,7 +15,9 @@ from aligngym.scenarios.experiments.paper003 import sway_peak_velocity
 from aligngym.scenarios.registry import DATA_DIR
 from aligngym.scenarios.simulate import simulate
 from aligngym.scenarios.worlds import world_of
+from scenario_files import shipped_with
 
+SHIP = "ship-sway-rotary"
 SQUALL = """
 [[schedule]]
 time_s = 20.0
@@ -29,19 +31,9 @@ motion.sway_scale = 0.5
 """
 
 
-def scenario(tmp_path, extra: str, duration: float = 80.0, name: str = "ship-sway-rotary",
-             scale: str = "") -> str:
-    text = re.sub(r"duration_s = [0-9.]+", f"duration_s = {duration}",
-                  (DATA_DIR / f"{name}.toml").read_text())
-    text = text.replace("[motion]\n", f"[motion]\n{scale}")
-    path = tmp_path / f"{name}-{abs(hash(extra + scale))}.toml"
-    path.write_text(text + extra)
-    return str(path)
-
-
 @pytest.fixture(scope="module")
 def squall(tmp_path_factory):
-    config = load_scenario(scenario(tmp_path_factory.mktemp("sway"), SQUALL))
+    config = load_scenario(shipped_with(tmp_path_factory.mktemp("sway"), SHIP, 80.0, SQUALL))
     return config, world_of(config).episode_motion(config, np.random.default_rng(3))
 
 
@@ -105,8 +97,8 @@ def test_the_strapdown_tracks_the_truth_through_the_squall(tmp_path):
 
 def test_a_change_to_the_same_scale_changes_no_number(tmp_path):
     same = "\n[[schedule]]\ntime_s = 10.0\nramp_s = 5.0\nmotion.sway_scale = 1.0\n"
-    plain = simulate(load_scenario(scenario(tmp_path, "", 30.0)), seed=3)
-    config = load_scenario(scenario(tmp_path, same, 30.0))
+    plain = simulate(load_scenario(shipped_with(tmp_path, SHIP, 30.0)), seed=3)
+    config = load_scenario(shipped_with(tmp_path, SHIP, 30.0, same))
     assert config.schedule
     scheduled = simulate(config, seed=3)
     for name, value in plain.arrays().items():
@@ -135,14 +127,15 @@ def test_the_filter_is_tuned_for_the_files_sea_not_the_schedule(tmp_path):
 ])
 def test_a_bad_sway_entry_is_one_line_naming_it(tmp_path, extra, scale, message):
     with pytest.raises(ConfigError) as info:
-        load_scenario(scenario(tmp_path, extra, 30.0, scale=scale))
+        load_scenario(shipped_with(tmp_path, SHIP, 30.0, extra, motion=scale))
     assert message in str(info.value) and "\n" not in str(info.value)
 
 
 def test_a_world_without_a_sea_refuses_it(tmp_path):
     with pytest.raises(ConfigError, match="schedule.0. table = 'motion' is unknown"):
-        load_scenario(scenario(tmp_path, "\n[[schedule]]\ntime_s = 10.0\nramp_s = 2.0\n"
-                               "motion.sway_scale = 2.0\n", 30.0, "static-large-azimuth"))
+        load_scenario(shipped_with(tmp_path, "static-large-azimuth", 30.0,
+                                   "\n[[schedule]]\ntime_s = 10.0\nramp_s = 2.0\n"
+                                   "motion.sway_scale = 2.0\n"))
 
 
 def test_a_shorter_run_is_the_longer_ones_beginning(tmp_path):
@@ -150,7 +143,7 @@ def test_a_shorter_run_is_the_longer_ones_beginning(tmp_path):
     before its end, and a ramp still going at its end is kept: its truth and ideal IMU
     data are the longer run's first part (here the squall's ramp, 20-30 s, cut at 25 s;
     the sensors' random draws depend on the run's length either way)."""
-    config = load_scenario(scenario(tmp_path, SQUALL, 80.0))
+    config = load_scenario(shipped_with(tmp_path, SHIP, 80.0, SQUALL))
     short = config.with_options(duration=25.0)
     assert [e.time for e in short.schedule.entries] == [20.0]
     assert not config.with_options(duration=10.0).schedule
