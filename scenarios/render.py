@@ -179,7 +179,7 @@ class SceneRenderer:
                 renderer.update_scene(self.data, camera,
                                       scene_option=self._inset_option if close_up else None)
                 picture = renderer.render()
-            ids = np.where(picture[..., 1] == mujoco.mjtObj.mjOBJ_GEOM,
+            ids = np.where(picture[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM),
                            picture[..., 0].astype(int), -1)
         finally:
             renderer.disable_segmentation_rendering()

@@ -248,6 +248,8 @@ class SwayingShip(Prescribed):
             check_range(f"motion.{name}_deg_s", getattr(m, name) / deg, -360.0, 360.0,
                         "deg/s")
         check_range("motion.sway_scale", m.sway_scale, 0.0, 10.0, "")
+        for i, size in enumerate(m.hull_size):      # the hull drawn (and the camera's reach)
+            check_range(f"motion.hull_size_m[{i}]", size, 0.5, 500.0, "m")
         for i, entry in enumerate(config.schedule.entries):
             value = dict(entry.values).get("sway_scale") if entry.section == "motion" else None
             if value is None:

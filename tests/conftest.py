@@ -51,13 +51,12 @@ def _share_truth_cache(config):
 
 
 FILE_SECONDS = {
-    "test_env.py": 40, "test_paper003.py": 34, "test_paper002.py": 28,
-    "test_vehicle.py": 26, "test_regress.py": 24, "test_wheel.py": 24, "test_report.py": 23,
-    "test_floors_ship.py": 19, "test_paper004.py": 19, "test_waves.py": 16, "test_usv.py": 14,
-    "test_paper000.py": 14, "test_floors_car.py": 13, "test_faults.py": 13,
-    "test_assert_alignment.py": 12, "test_reproduce.py": 10, "test_render.py": 10,
-    "test_ray.py": 10, "test_scenes.py": 9, "test_fuzz.py": 7, "test_fuzz_cli.py": 7,
-    "test_paper001.py": 7}
+    "test_paper003.py": 39, "test_assert_alignment.py": 34, "test_vehicle.py": 29,
+    "test_env.py": 26, "test_paper002.py": 23, "test_regress.py": 21,
+    "test_paper004.py": 19, "test_waves.py": 18, "test_floors_car.py": 17,
+    "test_floors_ship.py": 17, "test_wheel.py": 16, "test_changing_scenarios.py": 14,
+    "test_paper000.py": 14, "test_report.py": 12, "test_ray.py": 11, "test_faults.py": 11,
+    "test_usv.py": 8, "test_fuzz.py": 8, "test_render.py": 7, "test_docs_blocks.py": 7}
 """The test files that take longest, s on two cores (``--durations=0``, 2026-12-06); the
 rest take under 7 s each."""
 

@@ -39,7 +39,14 @@ def test_every_shipped_scenario_and_experiment_has_a_case():
                                                       if e.startswith("paper")])
 
 
-@pytest.mark.parametrize("scenario", sorted(CASES))
+RUN_ORDER = sorted(CASES, key=lambda name: name != "figure8-gps-changing")
+"""The cases in name order but figure8-gps-changing first: the car's run on its smooth
+road is one run for every seed, and a shorter one is the start of a longer one
+(``world_truth.shared_motion``); its 480 s fine run taken first serves figure8-gps and
+figure8-gps-paper from the truth cache instead of a second, shorter MuJoCo run."""
+
+
+@pytest.mark.parametrize("scenario", RUN_ORDER)
 def test_every_start_of_every_shipped_scenario_within_its_bounds(scenario):
     name, episodes, settings, heading, level = CASES[scenario]
     starts = experiment_for(scenario, **settings).starts

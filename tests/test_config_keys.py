@@ -22,6 +22,8 @@ def edited(name: str, old: str, new: str, tmp_path) -> str:
     ("ship-waves-rotary", r"^duration_s = .*\n", "", "missing key run.duration_s"),
     ("ship-waves-rotary", r"^heave_period_s = .*$", "heave_period_s = -2.5",
      "motion.heave_period_s = -2.5 is out of range [2, 30]"),
+    ("usv-mems-swing", r"^hull_size_m = .*$", "hull_size_m = [-3.0, 6.0, 1.0]",
+     "motion.hull_size_m[0] = -3 m is out of range [0.5, 500]"),
     ("ring-road-odometer", r"^radius_m = .*$", "radius_m = -5.0",
      "motion.radius_m = -5 m is out of range"),
     ("ring-road-odometer", r"^\[odometer\]\n", "[odometer]\nnominal_radius_m = -3.0\n",

@@ -2,6 +2,9 @@
 (segmentation renders: each key geom covers pixels), frames are not blank and follow the
 motion, ``aligngym render`` writes a readable video, and bad options are one-line
 errors."""
+import shutil
+import weakref
+
 import numpy as np
 import pytest
 
@@ -16,12 +19,20 @@ def scene(frame: np.ndarray) -> np.ndarray:
     return frame[frame.shape[0] // 4: frame.shape[0] * 3 // 5]
 
 
+PICTURES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Each renderer's segmentation pictures by (time, close-up): the geoms of one picture are
+counted by several tests (a picture is drawn once)."""
+
+
 def pixels(renderer: SceneRenderer, t: float, prefix: str, close_up: bool = False) -> int:
     """Pixels showing the geoms whose names start with prefix."""
     model = renderer.model
     ids = [i for i in range(model.ngeom) if model.geom(i).name.startswith(prefix)]
     assert ids, prefix
-    return int(np.isin(renderer.segmentation(t, close_up), ids).sum())
+    drawn = PICTURES.setdefault(renderer, {})
+    if (t, close_up) not in drawn:
+        drawn[t, close_up] = renderer.segmentation(t, close_up)
+    return int(np.isin(drawn[t, close_up], ids).sum())
 
 
 @pytest.fixture(scope="module")
@@ -64,14 +75,30 @@ def test_frames_are_not_blank_and_follow_the_motion(ship):
     assert (np.isin(first, outer) != np.isin(second, outer)).sum() > 100
 
 
+def wave_boat_config():
+    return load_scenario("usv-mems-waves").with_options(duration=10.0)
+
+
+@pytest.fixture(scope="module")
+def wave_boat():
+    """The floating boat's pictures of one episode (10 s of usv-mems-waves, seed 3): its
+    dressed run is simulated once for the three tests that pose it."""
+    renderer = SceneRenderer(wave_boat_config(), seed=3, size=SIZE)
+    yield renderer
+    renderer.close()
+
+
 @pytest.mark.parametrize("name", ["usv-mems-swing", "usv-mems-waves", "static-large-azimuth",
                                   "figure8-gps"])
-def test_other_worlds_show_the_carrier_and_the_imu(name):
+def test_other_worlds_show_the_carrier_and_the_imu(name, request):
     """The small boat (prescribed, and floating in its sea: posed from its own run), the
     marble platform and the car (its run; the close-up shows the instruments inside the
     body): the carrier and the IMU case are seen."""
-    config = load_scenario(name).with_options(duration=10.0)
-    renderer = SceneRenderer(config, seed=2, size=SIZE)
+    if name == "usv-mems-waves":
+        renderer = request.getfixturevalue("wave_boat")
+    else:
+        config = load_scenario(name).with_options(duration=10.0)
+        renderer = SceneRenderer(config, seed=2, size=SIZE)
     try:
         carrier = {"usv-mems-swing": "hull", "usv-mems-waves": "hull",
                    "static-large-azimuth": "slab", "figure8-gps": "cabin"}[name]
@@ -79,40 +106,51 @@ def test_other_worlds_show_the_carrier_and_the_imu(name):
         assert pixels(renderer, 6.0, "imu_case", close_up=True) > 100
         assert scene(renderer.frame(6.0)).std() > 20
     finally:
-        renderer.close()
+        if name != "usv-mems-waves":
+            renderer.close()
 
 
-def test_the_wave_boat_is_posed_from_its_episode():
+def test_the_wave_boat_is_posed_from_its_episode(wave_boat):
     """The floating boat's pose is the episode's: its run with the same seed (the same
     sea), the carrier's attitude read back from MuJoCo equal to the simulated truth."""
     from aligngym.models.attitude import dcm_to_quat, quat_angle
     from aligngym.scenarios.simulate import simulate
-    config = load_scenario("usv-mems-waves").with_options(duration=10.0)
-    renderer = SceneRenderer(config, seed=3, size=SIZE)
-    try:
-        episode = simulate(config, seed=3, ideal=True)
-        k = 600                                   # 6 s at 100 Hz
-        renderer.pose(float(episode.truth.t[k]))
-        C_b_t = renderer.data.xmat[renderer.model.body("carrier").id].reshape(3, 3)
-        # the truth's q_b_n is in ENU at the IMU; the plane t is ENU at the origin: the
-        # two differ by the meridian convergence over metres (< 1e-6 rad)
-        assert quat_angle(dcm_to_quat(C_b_t), episode.truth.q_b_n[k]) < 1e-5
-    finally:
-        renderer.close()
+    renderer = wave_boat
+    episode = simulate(wave_boat_config(), seed=3, ideal=True)
+    k = 600                                       # 6 s at 100 Hz
+    renderer.pose(float(episode.truth.t[k]))
+    C_b_t = renderer.data.xmat[renderer.model.body("carrier").id].reshape(3, 3)
+    # the truth's q_b_n is in ENU at the IMU; the plane t is ENU at the origin: the
+    # two differ by the meridian convergence over metres (< 1e-6 rad)
+    assert quat_angle(dcm_to_quat(C_b_t), episode.truth.q_b_n[k]) < 1e-5
+
+
+VIDEO = ["render", "static-large-azimuth", "--duration", "1", "--fps", "4", "--size",
+         "96x128"]
+
+
+@pytest.fixture(scope="module")
+def video(tmp_path_factory):
+    """``aligngym render``'s video of 1 s at 4 fps, 96 x 128 pixels, alone in its
+    directory (nothing else left), written once: read back below, and the good video an
+    interrupted render must leave as it was."""
+    from aligngym.scenarios.cli import main
+    folder = tmp_path_factory.mktemp("video")
+    out = folder / "v.mp4"
+    assert main([*VIDEO, "--out", str(out)]) == 0
+    assert [p.name for p in folder.iterdir()] == ["v.mp4"]
+    return out
 
 
 @pytest.mark.filterwarnings("ignore:unclosed file <_io.Buffered:ResourceWarning",
                             "ignore::pytest.PytestUnraisableExceptionWarning")
-def test_render_writes_a_video(tmp_path):
+def test_render_writes_a_video(tmp_path, video):
     """(Reading the video back, imageio-ffmpeg's frame reader leaves its ffmpeg process's
     pipes to the garbage collector, closed or not: the two warnings allowed here are
     that library's, in this test alone.)"""
     from aligngym.scenarios.cli import main
     import imageio.v2 as imageio
-    out = tmp_path / "ship.mp4"
-    assert main(["render", "static-large-azimuth", "--duration", "1", "--fps", "4",
-                 "--size", "96x128", "--out", str(out)]) == 0
-    with imageio.get_reader(out) as reader:
+    with imageio.get_reader(video) as reader:
         frames = list(iter(reader))      # its len() is inf: no list() size hint
     assert len(frames) == 5 and frames[0].shape == (96, 128, 3)
     png = tmp_path / "frame.png"
@@ -122,15 +160,13 @@ def test_render_writes_a_video(tmp_path):
     assert image.shape == (96, 128, 3) and scene(image).std() > 20
 
 
-def test_an_interrupted_render_leaves_the_old_video(tmp_path, monkeypatch, capsys):
+def test_an_interrupted_render_leaves_the_old_video(tmp_path, monkeypatch, capsys, video):
     """Ctrl-C after three frames: the good video that was there is untouched (the new
     one was written under a temporary name), nothing else is left, one line, exit 130."""
     from aligngym.scenarios import render
     from aligngym.scenarios.cli import main
     out = tmp_path / "v.mp4"
-    argv = ["render", "static-large-azimuth", "--duration", "1", "--fps", "4", "--size",
-            "96x128", "--out", str(out)]
-    assert main(argv) == 0
+    shutil.copyfile(video, out)               # the good video (``aligngym render``'s own)
     before = out.read_bytes()
     frame, count = render.SceneRenderer.frame, []
 
@@ -142,7 +178,7 @@ def test_an_interrupted_render_leaves_the_old_video(tmp_path, monkeypatch, capsy
 
     monkeypatch.setattr(render.SceneRenderer, "frame", interrupted)
     capsys.readouterr()
-    assert main(argv[:-2] + ["--duration", "4", "--out", str(out)]) == 130
+    assert main([*VIDEO, "--duration", "4", "--out", str(out)]) == 130
     assert capsys.readouterr().err.strip().splitlines() == [
         "aligngym: interrupted; no output was written (an existing one is unchanged)"]
     assert out.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["v.mp4"]
@@ -200,27 +236,23 @@ def test_the_car_is_posed_with_every_joint():
         renderer.close()
 
 
-def test_the_sea_is_the_wave_model():
+def test_the_sea_is_the_wave_model(wave_boat):
     """The wave-driven ship's heightfield at a time is the sea of its episode: MuJoCo's
     surface (a ray cast straight down) against the wave model's elevation there."""
     import mujoco
-    config = load_scenario("usv-mems-waves").with_options(duration=10.0)
-    renderer = SceneRenderer(config, seed=1, size=SIZE)
-    try:
-        renderer.pose(7.0)
-        model, data = renderer.model, renderer.data
-        sea = model.geom("sea_waves").id
-        geomgroup = np.array([0, 1, 0, 0, 0, 0], np.uint8)
-        for x, y in ((-30.0, 12.0), (25.0, -40.0), (40.0, 35.0)):
-            hit = np.zeros(1, np.int32)
-            top = 50.0
-            distance = mujoco.mj_ray(model, data, np.array([x, y, top]),
-                                     np.array([0.0, 0.0, -1.0]), geomgroup, 1, -1, hit)
-            assert hit[0] == sea
-            expected = renderer.world.sea_surface(7.0, np.array([x]), np.array([y]))[0]
-            assert abs((top - distance) - expected) < 0.05     # the 0.4 m grid's chord
-    finally:
-        renderer.close()
+    renderer = wave_boat
+    renderer.pose(7.0)
+    model, data = renderer.model, renderer.data
+    sea = model.geom("sea_waves").id
+    geomgroup = np.array([0, 1, 0, 0, 0, 0], np.uint8)
+    for x, y in ((-30.0, 12.0), (25.0, -40.0), (40.0, 35.0)):
+        hit = np.zeros(1, np.int32)
+        top = 50.0
+        distance = mujoco.mj_ray(model, data, np.array([x, y, top]),
+                                 np.array([0.0, 0.0, -1.0]), geomgroup, 1, -1, hit)
+        assert hit[0] == sea
+        expected = renderer.world.sea_surface(7.0, np.array([x]), np.array([y]))[0]
+        assert abs((top - distance) - expected) < 0.05     # the 0.4 m grid's chord
 
 
 def test_render_start_and_output_errors(tmp_path, capsys):

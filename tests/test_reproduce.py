@@ -1,8 +1,11 @@
 """aligngym reproduce: each paper's claims judged on its campaigns; claims that need the same
 campaign share one run; a claim that does not hold says why; the page lists them all."""
+from dataclasses import replace
+
 import pytest
 
 from aligngym.scenarios.campaign.claims import Claim
+from aligngym.scenarios.campaign.plan import claims_plan
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.experiments import experiment_class, experiment_names
 from aligngym.scenarios.reproduce import format_verdicts, reproduce
@@ -18,10 +21,30 @@ def test_every_paper_declares_its_claims_with_a_reason_where_they_may_fail():
             assert claim.setup == "default" or claim.setup in experiment_class(name).setups
 
 
-def test_paper003_claims_share_two_campaigns_and_the_page_is_written(tmp_path):
+def test_paper003_claims_share_two_campaigns_and_the_page_is_written(tmp_path,
+                                                                     monkeypatch):
+    """The command's contract is under test (the claims' grouping into campaigns, their
+    numbers measured, the pages written), not the alignment: the plan ``reproduce``
+    makes (``claims_plan``, 2 episodes) with 60 s of fine alignment, not the paper's
+    600 s. The paper setup's campaign draws all its figures; the default setup's, whose
+    figures tests/test_report.py draws and checks (paper003's campaign), only the
+    fine_error ones the page links."""
+    import aligngym.scenarios.report as report
+    from aligngym.scenarios.figures import plot_error_bands
+    plan = [replace(c, spec=replace(c.spec, experiment=replace(c.spec.experiment,
+                                                               fine_duration=60.0)))
+            for c in claims_plan(["paper003"], 2)]
+    every_figure = report.figure_jobs
+
+    def figure_jobs(result, out):
+        jobs = every_figure(result, out)
+        if result.experiment.setup == "paper":
+            return jobs
+        return [j for j in jobs if j.func is plot_error_bands]      # fine_error_*.png
+    monkeypatch.setattr(report, "figure_jobs", figure_jobs)
     log = []
     verdicts, text = reproduce(["paper003"], episodes=2, out_dir=tmp_path, workers=1,
-                               log=log.append)
+                               log=log.append, plan=plan)
     assert len(log) == 2            # default and paper setups: one campaign each
     assert len(verdicts) == len(experiment_class("paper003").claims)
     assert {v.claim.setup for v in verdicts} == {"default", "paper"}

@@ -192,6 +192,11 @@ WAVES = "usv-mems-waves"
 SLEWS = "schedule = [[0.0, 0.0], [20.0, 0.0], [26.0, 180.0], [50.0, 180.0], [56.0, 0.0]]"
 
 
+SLEWING_SEED = 2
+"""The seed of the slewing wave boat's checks below: one sea, so one MuJoCo run of the
+floating hull (seeded: the truth cache keys it by the seed) serves all three."""
+
+
 def waves_with_slews(tmp_path, duration=80.0):
     """The wave-driven boat with two slews early in a short run."""
     return load_scenario(edited(tmp_path, WAVES, ("stops_deg = [0.0, 180.0]", SLEWS),
@@ -199,14 +204,20 @@ def waves_with_slews(tmp_path, duration=80.0):
                                 ("duration_s = 2000.0", f"duration_s = {duration}")))
 
 
-def test_wave_boat_servo_follows_its_command_inside_the_floating_hull(tmp_path):
+@pytest.fixture(scope="module")
+def slewing(tmp_path_factory):
+    """``waves_with_slews``, 80 s, for every check of the slewing wave boat."""
+    return waves_with_slews(tmp_path_factory.mktemp("waves"))
+
+
+def test_wave_boat_servo_follows_its_command_inside_the_floating_hull(slewing):
     """The indexer is a MuJoCo actuator in the floating hull's model: the encoder follows
     the ramp with the servo's lag 2 zeta rate / w_n (within 20 %), rests on each stop, and
     the IMU turns with it relative to the hull."""
     from aligngym.models.attitude import quat_to_dcm, rot_z
-    config = waves_with_slews(tmp_path)
+    config = slewing
     spec = config.motion.indexer
-    episode = simulate(config, seed=2)
+    episode = simulate(config, seed=SLEWING_SEED)
     t, angle = episode.truth.t, episode.truth.gimbal_angles[:, 0]
     w_n = 2 * math.pi * spec.natural_frequency
     lag = 2 * spec.damping_ratio * spec.slew_rate / w_n       # rad behind the ramp
@@ -221,23 +232,23 @@ def test_wave_boat_servo_follows_its_command_inside_the_floating_hull(tmp_path):
     np.testing.assert_allclose(C_s_b, rot_z(angle[i]), atol=1e-12)
 
 
-def test_wave_boat_fidelity_with_the_indexer_slewing(tmp_path):
+def test_wave_boat_fidelity_with_the_indexer_slewing(slewing):
     """SPEC section 3 on the wave-driven boat over two slews (80 s, 10x tighter than the
     600 s bar, which the drift rates extrapolate to)."""
     from aligngym.scenarios.fidelity import fidelity_errors
-    err = fidelity_errors(waves_with_slews(tmp_path), seed=0)
+    err = fidelity_errors(slewing, seed=SLEWING_SEED)
     assert err["attitude_rad"] < 0.1 * arcsec
     assert err["velocity_m_s"] < 0.5e-3
     assert err["position_m"] < 0.1
 
 
-def test_wave_boat_gnss_is_the_antenna_on_the_rigid_hull(tmp_path):
+def test_wave_boat_gnss_is_the_antenna_on_the_rigid_hull(slewing):
     """Ideal fixes at the antenna: the IMU's truth plus the hull's C_b^n (antenna - IMU
-    lever arm), and the rigid body's velocity relation, at every fix."""
+    lever arm), and the rigid body's velocity relation, at every fix (80 s: both slews)."""
     from aligngym.models.attitude import quat_to_dcm
     from aligngym.models.earth import radii
-    config = waves_with_slews(tmp_path, duration=30.0)
-    episode = simulate(config, seed=1, ideal=True)
+    config = slewing
+    episode = simulate(config, seed=SLEWING_SEED, ideal=True)
     tr, gps = episode.truth, episode.measurements["gps"]
     i = np.searchsorted(tr.t, gps.t)
     arm_n = np.einsum("nij,j->ni", quat_to_dcm(tr.q_b_n[i]),

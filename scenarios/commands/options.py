@@ -136,6 +136,9 @@ def check_writable(path_text: str, option: str) -> None:
     path = Path(path_text)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:                  # a file (not a folder) on the way
+        raise ConfigError(f"{option} {path}: cannot create {path.parent}: a file of that "
+                          "name (or above it) is in the way, not a directory") from None
     except OSError as exc:
         raise ConfigError(f"{option} {path}: cannot create {path.parent} "
                           f"({exc.strerror})") from None
