@@ -361,21 +361,28 @@ class FromTheMeanStart(Paper003Experiment):
     starts = ("mean",)
 
 
-def test_sway_aware_kf_is_consistent_under_sway():
+def test_sway_aware_kf_keeps_its_measured_consistency_under_sway():
     """kf-sway (the sway velocity as narrow-band states, calm-sea R) under the paper's
-    sway, 20 episodes: the mean final NEES of the 9 attitude and bias states lies in its
-    95 % chi-square band, and its heading error is no worse than the KF's."""
+    sway, 20 episodes: the mean final NEES of the 9 attitude and bias states lies between
+    the low end of its 95 % chi-square band and 1.25x its high end.
+
+    Not the band itself: kf-sway is about 24 % overconfident. Over 60 episodes (seeds 0, 7
+    and 11, 20 each) its mean final NEES is 11.15 against the band [7.96, 10.1] (12.21,
+    11.51 and 9.73 per seed; the band of 20 is [7.24, 10.95]); this test used to assert
+    the band at seed 11 alone, the one seed of the three inside it. Its heading error is
+    not always below the KF's either (RMS 0.196' against 0.206', 0.192' against 0.167',
+    0.183' against 0.201'). A start covariance of the sway states 4x too small moves the
+    NEES beyond the bound; their process noise does not (0.01x passes, as it did the band
+    at seed 11): the attitude and bias states do not see it over 600 s."""
     n = 20
     # One process (the sway campaign above runs in worker processes): the campaign's
     # first 4 episodes reuse that campaign's truths.
-    result = run_campaign(episodes=n, seed=SWAY_SEED, filters=["kf", "kf-sway"], workers=1,
+    result = run_campaign(episodes=n, seed=SWAY_SEED, filters=["kf-sway"], workers=1,
                           progress=False, experiment=FromTheMeanStart())
-    runs = {r.filter: r for r in result.runs}
-    assert set(runs) == {"kf", "kf-sway"} and {r.start for r in result.runs} == {"mean"}
+    (run,) = result.runs
+    assert run.filter == "kf-sway" and run.start == "mean"
     low, high = chi2.ppf([0.025, 0.975], 9 * n) / n
-    assert low < runs["kf-sway"].nees[:, -1].mean() < high
-    rms = {name: np.sqrt(np.mean(r.error_n[:, -1, 2] ** 2)) for name, r in runs.items()}
-    assert rms["kf-sway"] <= rms["kf"]
+    assert low < run.nees[:, -1].mean() < 1.25 * high
 
 
 def test_sway_aware_model_oracles(experiment):
