@@ -197,17 +197,38 @@ def test_fuzzed_damage_before_resume_completes_or_is_one_line(cuts, clean_campai
 
 
 # --- 3. Ctrl-C and OSError in the CLI -----------------------------------------------------
+STACKS_ON_SIGUSR1 = ("import faulthandler, signal, sys; "
+                     "faulthandler.register(signal.SIGUSR1, all_threads=True); "
+                     "from aligngym.scenarios.cli import main; sys.exit(main(sys.argv[1:]))")
+"""The command line run with every thread's stack written to stderr on SIGUSR1 (in the
+campaign's forked workers too): a run that hangs is shown where, not only timed out."""
+
+
+def communicate_or_show_stacks(proc: subprocess.Popen, timeout: float) -> str:
+    """proc's stderr once it ends; if it has not ended after timeout s, its process group's
+    stacks (``STACKS_ON_SIGUSR1``) in the failure, and the group killed."""
+    try:
+        return proc.communicate(timeout=timeout)[1]
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGUSR1)
+        time.sleep(2.0)
+        os.killpg(proc.pid, signal.SIGKILL)
+        err = proc.communicate()[1]
+        pytest.fail(f"the command did not end within {timeout:g} s; its stacks:\n{err}")
+
+
 def test_ctrl_c_mid_campaign_is_one_line_exit_130_and_resume_continues(tmp_path):
     out = tmp_path / "c"
     argv = ["bench", "paper002", "--episodes", "40", "--filters", "ekf", "--workers", "2",
             "--out", str(out)]
-    proc = subprocess.Popen(cli(*argv), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+    proc = subprocess.Popen([sys.executable, "-c", STACKS_ON_SIGUSR1, *argv],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
     deadline = time.monotonic() + 60
     while len(list((out / "episodes").glob("seed_*.npz"))) < 2 and time.monotonic() < deadline:
         time.sleep(0.01)
     os.killpg(proc.pid, signal.SIGINT)                 # as a terminal's Ctrl-C
-    err = proc.communicate(timeout=60)[1]
+    err = communicate_or_show_stacks(proc, 60)
     assert proc.returncode == 130 and "Traceback" not in err
     line = last_line(err)
     kept = len(list((out / "episodes").glob("seed_*.npz")))

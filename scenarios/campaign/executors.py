@@ -191,11 +191,16 @@ def stopped_on_error(pool: ProcessPoolExecutor) -> Iterator[ProcessPoolExecutor]
 
 
 def stop_pool(pool: ProcessPoolExecutor) -> None:
-    """Stop a pool at once: its queued tasks cancelled, its running workers terminated."""
+    """Stop a pool at once: its queued tasks cancelled, its running workers terminated.
+    The workers go first, then the pool is shut down waiting for its manager thread
+    (which finds them gone, fails what was pending and ends): ``shutdown(wait=False)``
+    before killing them let that thread, still running, replace the dead workers of a
+    pool whose state was already reset, an error and a hang at exit (CPython gh-132969,
+    fixed after 3.13)."""
     running = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
     for process in running:
         process.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def can_fork_workers() -> bool:
