@@ -158,6 +158,9 @@ class ShipSwayMotion(GimbalRates):
                 -k * w * w * sine + 2.0 * dk * w * cosine + ddk * sine)
 
 
+HULL_SIZE_RANGE = (0.5, 500.0)
+"""Allowed beam, length and depth of a hull, m (prescribed or wave-driven)."""
+
 REFERENCE_HULL = ((18.0, 90.0, 8.0), 5.01e6, (3.41e9, 1.62e8, 3.52e9))
 """Paper 003's ship: beam, length, depth (m), mass (kg) and principal inertia about its
 centre of mass (kg m^2, R, F, U). Other hulls scale it as boxes of the same density."""

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.models.indexer import IndexerMotion, IndexerSpec
-from aligngym.models.ship import REFERENCE_HULL, ship_mjcf
+from aligngym.models.ship import HULL_SIZE_RANGE, REFERENCE_HULL, ship_mjcf
 from aligngym.models.units import deg
 from aligngym.models.world import DiscreteRun, GimbalRates, skip_sensors, stalled
 
@@ -84,10 +84,11 @@ class WaveShipMotion(GimbalRates):
             raise ValueError(f"indexer.servo_step = {self.indexer.servo_step:g} s: on the "
                              f"wave-driven hull the servo steps with the physics, "
                              f"{WAVE_TIMESTEP:g} s")
+        low, high = HULL_SIZE_RANGE
         for i, size in enumerate(self.hull_size):
-            if not 0.5 <= size <= 500.0:
+            if not low <= size <= high:
                 raise ValueError(f"motion.hull_size[{i}] = {size:g} m is out of range "
-                                 "[0.5, 500]")
+                                 f"[{low:g}, {high:g}]")
         for name, low, high in (("significant_wave_height", 0.0, 15.0),
                                 ("peak_period", 2.0, 25.0), ("heave_period", 2.0, 30.0),
                                 ("roll_period", 2.0, 30.0), ("pitch_period", 2.0, 30.0),

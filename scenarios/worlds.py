@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from aligngym.models.ship import HULL_SIZE_RANGE
 from aligngym.models.units import deg
 from aligngym.models.world import PrescribedWorld
 from aligngym.scenarios.world_truth import (Scenario, WorldTruth, cached_motion,
@@ -249,7 +250,7 @@ class SwayingShip(Prescribed):
                         "deg/s")
         check_range("motion.sway_scale", m.sway_scale, 0.0, 10.0, "")
         for i, size in enumerate(m.hull_size):      # the hull drawn (and the camera's reach)
-            check_range(f"motion.hull_size_m[{i}]", size, 0.5, 500.0, "m")
+            check_range(f"motion.hull_size_m[{i}]", size, *HULL_SIZE_RANGE, "m")
         for i, entry in enumerate(config.schedule.entries):
             value = dict(entry.values).get("sway_scale") if entry.section == "motion" else None
             if value is None:
