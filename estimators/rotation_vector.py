@@ -30,6 +30,10 @@ from aligngym.models.earth import (earth_rate_n, gravity_n, metres_per_geodetic,
 PHI, DV, DP, EPS, NABLA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12),
                            slice(12, 15))
 N_STATES = 15
+LAYOUT = StateLayout({"misalignment": PHI, "velocity": DV, "position": DP,
+                      "gyro_bias": EPS, "accel_bias": NABLA})
+"""004's 15 states: misalignment phi (rad), velocity (m/s) and position (m) errors, gyro
+(rad/s) and accelerometer (m/s^2) biases."""
 
 
 def J_r_inv(phi: np.ndarray) -> np.ndarray:
@@ -309,8 +313,7 @@ class RotationVectorGnssModel(FilterModel):
             raise ValueError(f"variant {variant!r}; valid: " + ", ".join(VARIANTS))
         self.inputs, self.tuning, self.variant = inputs, tuning, variant
         self.feedback_below = feedback_below
-        self.layout = StateLayout({"misalignment": PHI, "velocity": DV, "position": DP,
-                                   "gyro_bias": EPS, "accel_bias": NABLA})
+        self.layout = LAYOUT
         B, K = inputs.dtheta.shape[:2]
         self.batch, self.epochs, self.t = B, K, inputs.t
         self.T = float(inputs.t[1] - inputs.t[0])

@@ -35,8 +35,8 @@ from aligngym.estimators.model import Observation, StateLayout, Transition
 from aligngym.models.attitude import cross
 from aligngym.models.units import deg
 from aligngym.models.world import gimbal_C_s_b
-from aligngym.scenarios.campaign import Experiment, fine_summary, simulate_screened
-from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded, setting
+from aligngym.scenarios.campaign import Experiment, simulate_screened
+from aligngym.scenarios.campaign.settings import MAX_RUN, POSITIVE, bounded, setting
 from aligngym.scenarios.campaign.requirements import SensorTable
 from aligngym.scenarios.experiments import paper003
 from aligngym.sensors.imu import ImuTuning
@@ -160,6 +160,14 @@ class DvlAidedModel(InertialFineModel):
         return Observation(noise=plain.noise, matrix=H, z=z, t=plain.t, axes=plain.axes)
 
 
+def prepare_dvl_episode(experiment: "DvlAidedExperiment", seed: int, config) -> DvlEpisode:
+    """Paper 003's preparation, and the sway centre's velocity from the DVL."""
+    simulated = simulate_screened(config, seed)
+    base = paper003.prepare_episode(experiment, seed, config, simulated)
+    v = sway_centre_velocity(simulated[0], config, base.inputs.t)
+    return DvlEpisode.aided(base, v, simulated[0].measurements["dvl"].bias)
+
+
 @dataclass(frozen=True)
 class DvlAidedExperiment(Experiment):
     """DVL-aided fine alignment on the swaying ship (module docstring): paper 003's
@@ -188,21 +196,13 @@ class DvlAidedExperiment(Experiment):
     observation_features = frozenset({"axes", "conditionally-linear"})
     episode_class = DvlEpisode
     default_episodes = 4
+    preparation = staticmethod(prepare_dvl_episode)
+    start_errors = staticmethod(paper003.coarse_starts)
+    truth_map = paper003.SENSOR_FRAME_TRUTH
 
     @property
     def duration(self) -> float:
         return self.coarse_duration + self.fine_duration
-
-    def prepare_episode(self, seed: int, config=None) -> DvlEpisode:
-        """Paper 003's preparation, and the sway centre's velocity from the DVL."""
-        config = config or self.scenario_config()
-        simulated = simulate_screened(config, seed)
-        base = paper003.prepare_episode(self, seed, config, simulated)
-        v = sway_centre_velocity(simulated[0], config, base.inputs.t)
-        return DvlEpisode.aided(base, v, simulated[0].measurements["dvl"].bias)
-
-    def start_errors(self, episodes):
-        return paper003.coarse_starts(episodes)
 
     def model(self, episodes, start_error, variant=""):
         config = self.scenario_config()
@@ -225,16 +225,3 @@ class DvlAidedExperiment(Experiment):
                              np.array([e.h for e in episodes]),
                              np.stack([e.v_centre_b for e in episodes]),
                              np.stack([e.C_s_b for e in episodes]), dvl.bias_sigma)
-
-    def attitude_sigma(self):
-        return np.deg2rad(self.attitude_sigma_deg)
-
-    def nees(self, result, episodes, error_n):
-        """NEES over attitude (in i) and the sensor-frame biases."""
-        return paper003.attitude_bias_nees(result, episodes, error_n)
-
-    def nees_dof(self):
-        return 9
-
-    def summary(self, result):
-        return {"fine": fine_summary(result)}

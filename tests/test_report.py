@@ -65,8 +65,7 @@ sensor_estimates, 004's consistency: code of their own) are drawn."""
 def campaigns(tmp_path_factory):
     """Per paper: (out dir, result, files written, the state dimensions each experiment's
     NEES was computed with, the names of the campaign figures its outputs list)."""
-    import importlib
-
+    import aligngym.scenarios.campaign.experiment as declared
     import aligngym.scenarios.report as report
     every_figure = report.figure_jobs
     done = {}
@@ -74,11 +73,10 @@ def campaigns(tmp_path_factory):
     for paper, (settings, filters, episodes) in CAMPAIGNS.items():
         if paper == "paper001":
             settings = {**settings, "scenario": scenario_file}
-        module = importlib.import_module(f"aligngym.scenarios.experiments.{paper}")
         seen, listed = [], set()
-        with pytest.MonkeyPatch.context() as mp:
-            original = module.nees
-            mp.setattr(module, "nees", lambda e, P, f=original: seen.append(e.shape[-1])
+        with pytest.MonkeyPatch.context() as mp:     # every truth map's NEES goes here
+            original = declared.nees
+            mp.setattr(declared, "nees", lambda e, P, f=original: seen.append(e.shape[-1])
                        or f(e, P))
             result = run_campaign(experiment(paper, **settings), episodes=episodes, seed=1,
                                   filters=filters, workers=1, progress=False)

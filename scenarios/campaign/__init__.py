@@ -15,13 +15,16 @@ from aligngym.scenarios.campaign.episodes import (GnssEpisode, PreparedEpisode, 
                                                   simulate_screened)
 from aligngym.scenarios.campaign.executors import (EXECUTORS, Executor, prepare_all,
                                                    register_executor)
-from aligngym.scenarios.campaign.experiment import (AXES, CampaignResult, Experiment, FilterRun,
-                                                    fine_summary, format_fine_table, setting)
+from aligngym.scenarios.campaign.experiment import Experiment, TruthMap
+from aligngym.scenarios.campaign.results import (AXES, CampaignResult, FilterRun, fine_summary,
+                                                 format_fine_table)
 from aligngym.scenarios.campaign.filtering import run_filters
 from aligngym.scenarios.campaign.runs import (analyse_run, concatenate_results, episode_metrics,
                                               run_filter)
+from aligngym.scenarios.campaign.settings import setting
 
 __all__ = ["AXES", "EXECUTORS", "CampaignResult", "Executor", "Experiment", "FilterRun", "GnssEpisode",
            "PreparedEpisode", "analyse_run", "concatenate_results", "episode_metrics",
            "episode_seeds", "fine_summary", "format_fine_table", "prepare_all", "register_executor",
-           "run_campaign", "run_filter", "run_filters", "setting", "simulate_screened"]
+           "run_campaign", "run_filter", "run_filters", "setting", "simulate_screened",
+           "TruthMap"]

@@ -10,7 +10,8 @@ from pathlib import Path
 from aligngym.estimators.model import whole_steps
 from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import executor_named, prepare_all
-from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
+from aligngym.scenarios.campaign.experiment import Experiment
+from aligngym.scenarios.campaign.results import CampaignResult
 from aligngym.scenarios.campaign.manifest import campaign_lock, check_manifest
 from aligngym.scenarios.campaign.filtering import run_filters
 from aligngym.scenarios.config import ConfigError

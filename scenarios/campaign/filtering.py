@@ -28,7 +28,8 @@ from aligngym.scenarios.campaign.episodes import PreparedEpisode
 from aligngym.scenarios.campaign.executors import (can_fork_workers, run_waiting_work,
                                                    start_worker, stopped_on_error,
                                                    usable_cores)
-from aligngym.scenarios.campaign.experiment import Experiment, FilterRun
+from aligngym.scenarios.campaign.experiment import Experiment
+from aligngym.scenarios.campaign.results import FilterRun
 from aligngym.scenarios.campaign.runs import (analyse_starts, concatenate_results,
                                               member_batch, run_members)
 from aligngym.scenarios.interrupts import raise_if_interrupted

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from aligngym.scenarios.campaign.claims import Claim
-from aligngym.scenarios.campaign.experiment import CampaignResult, Experiment
+from aligngym.scenarios.campaign.experiment import Experiment
+from aligngym.scenarios.campaign.results import CampaignResult
 from aligngym.scenarios.config import ConfigError
 
 

@@ -13,7 +13,8 @@ from aligngym.estimators.catalogue import filter_entry, make_filter
 from aligngym.estimators.metrics import StatusRule, convergence_time, euler_error, misalignment
 from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
-from aligngym.scenarios.campaign.experiment import AXES, Experiment, FilterRun
+from aligngym.scenarios.campaign.experiment import Experiment
+from aligngym.scenarios.campaign.results import AXES, FilterRun
 
 
 def analyse_run(name: str, start: str, result: FineResult, episodes: list[PreparedEpisode],

@@ -21,19 +21,21 @@ import numpy as np
 
 from aligngym.estimators.euler_large import C_p_n, true_state
 from aligngym.estimators.inertial_frame import odometer_aided_alignment, static_coarse_alignment
-from aligngym.estimators.metrics import euler_error, nees, status_fractions
+from aligngym.estimators.alignment import FineResult
+from aligngym.estimators.metrics import euler_error, status_fractions
 from aligngym.estimators.model import stack_episodes, wrap_angle
-from aligngym.estimators.odometer_large import (KD, MOUNT_PITCH, OdometerInputs,
-                                       OdometerLargeHeadingModel, OdometerTuning)
+from aligngym.estimators.odometer_large import (EPS, KD, LAYOUT, MOUNT_PITCH, NABLA, PHI,
+                                                OdometerInputs, OdometerLargeHeadingModel,
+                                                OdometerTuning)
 from aligngym.models.attitude import dcm_to_quat, quat_to_dcm
 from aligngym.models.earth import TangentPlane
 from aligngym.models.units import arcmin, deg
 from aligngym.scenarios.atomic import save_figure
-from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, setting,
-                                         simulate_screened)
+from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, TruthMap,
+                                         setting, simulate_screened)
 from aligngym.scenarios.campaign.requirements import SensorTable, StrapdownImu
-from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded
-from aligngym.scenarios.campaign.experiment import STATUS_HEADER, status_columns
+from aligngym.scenarios.campaign.settings import MAX_RUN, POSITIVE, bounded
+from aligngym.scenarios.campaign.results import STATUS_HEADER, status_columns
 from aligngym.scenarios.campaign.claims import Claim, ms_per_epoch, rule_points
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
 from aligngym.sensors.imu import ImuTuning
@@ -49,236 +51,6 @@ ROUGH_ROAD_RMS = 0.004
 NIS_LIMIT = 16.27
 """Innovation test: chi-square with 3 degrees of freedom at 0.999."""
 ANGLES = ("pitch", "roll", "heading")
-NEES_STATES = np.r_[0:3, 9:15]
-"""The states the NEES compares with the truth: Euler errors, gyro drift, accelerometer
-bias (9)."""
-
-
-@dataclass(frozen=True)
-class Paper000Experiment(Experiment):
-    """Settings (SPEC 4.2; assumed values marked). Times in s, angles in deg.
-
-    coarse_start, coarse_duration: the odometer-aided coarse window while driving (from
-    10 s after the car starts, 60 s: *assumed*); fine_duration: the fine alignment after
-    it (None: to the end of the run); attitude_sigma_deg: the filter's P0 of the Euler
-    errors E, N, U (*assumed*: 0.5, 0.5, 30; ALGORITHMS 4.3 suggests 30-60 deg for phi_U);
-    large_heading_deg: the "large" start's heading error (the coarse start's level errors
-    kept); mounting_sigma_deg: P0 of the residual odometer mounting pitch and heading
-    states (None: 000's 16-state model); measurement_sigma: per axis of the 1 s
-    position-increment difference, m (*assumed*: encoder quantization and tyre slip are
-    millimetres to centimetres); feedback_sigma_deg: closed loop once the heading sigma
-    is below it; disturbance: "none", "slip" (odometer slip bursts, ``SLIP_BURSTS``) or
-    "all" (slips and a rough road); reference_settle: s after the stop before the static
-    reference window; starts: the fine alignment's starts (``STARTS``).
-    start_velocity: the INS's velocity at the fine start. "drawn" (*assumed*; the paper
-    gives none): the true velocity plus a draw of P0's velocity sigma per axis, the error
-    the filter's P0 describes, as the attitude start is the truth turned by a drawn or
-    coarse error. "odometer": the odometer's velocity turned by the coarse attitude, all
-    an INS has at the end of the in-motion coarse window; its error |v| times the coarse
-    heading error (0.3-2.6 m/s) lies outside P0's 0.1 m/s, and no Gaussian P0 describes
-    it (it lies on a circle in the heading): rdghkf and ekf then end 12-24' off in
-    heading on ideal data where the drawn start leaves 1'.
-    """
-
-    scenario: str = "ring-road-odometer"
-    coarse_start: float = bounded(15.0, "s", low=0.0, high=MAX_RUN)
-    coarse_duration: float = bounded(60.0, "s", low=10.0, high=MAX_RUN)
-    fine_duration: float | None = bounded(None, "s", low=0.0, high=MAX_RUN, low_open=True)
-    filter_step: float = bounded(1.0, "s", **POSITIVE)
-    attitude_sigma_deg: tuple[float, float, float] = bounded((0.5, 0.5, 30.0), "deg",
-                                                             **POSITIVE)
-    large_heading_deg: float = bounded(30.0, "deg", low=-180.0, high=180.0)
-    velocity_sigma: float = bounded(0.1, "m/s", **POSITIVE)
-    position_sigma: float = bounded(1.0, "m", **POSITIVE)
-    scale_sigma: float = bounded(0.005, **POSITIVE)
-    mounting_sigma_deg: float | None = bounded(1.0, "deg", low=0.0, high=10.0, low_open=True)
-    measurement_sigma: float = bounded(0.02, "m/s", **POSITIVE)
-    feedback_sigma_deg: float | None = bounded(5.0, "deg", **POSITIVE)
-    disturbance: str = setting("none", "odometer slip bursts (slip), and a rough road as "
-                               "well (all)", choices=DISTURBANCES)
-    reference_settle: float = bounded(5.0, "s", low=0.0)
-    rms_window: float = bounded(60.0, "s", **POSITIVE)
-    heading_threshold_arcmin: float = bounded(10.0, "arcmin", **POSITIVE)
-    start_velocity: str = bounded("drawn", choices=START_VELOCITIES)
-    default_filters: tuple[str, ...] = ("sgkf", "rdghkf", "ckf", "ekf")
-    starts: tuple[str, ...] = STARTS
-
-    paper = "000"
-    regress = {"episodes": 2, "seed": 5, "filters": ["sgkf", "rdghkf", "ekf"],
-               "experiment": {"fine_duration": 200.0, "starts": ["coarse"]}}
-    reproduce = {"episodes": 20, "seed": 0}
-    claims = (
-        Claim("The strong-tracking reduced-dimension GH filter (SGKF) aligns more accurately "
-              "than the CKF (heading at the stop against the 5 min static alignment after it)",
-              "000 sec. 3, abstract",
-              {"sgkf heading vs reference RMS '": "fine/sgkf/vs_reference/rms_arcmin/2",
-               "ckf '": "fine/ckf/vs_reference/rms_arcmin/2",
-               "sgkf vs truth '": "fine/sgkf/vs_truth/rms_arcmin/2",
-               "ckf vs truth '": "fine/ckf/vs_truth/rms_arcmin/2"},
-              lambda n: n["sgkf heading vs reference RMS '"] < n["ckf '"],
-              "the reference itself carries the still's gyro-drift error (5.4' std, 20x the "
-              "filters' own); against the truth both end within 0.4' (docs/paper000.md)",
-              settings={"starts": ("coarse",)}, filters=("sgkf", "rdghkf", "ckf")),
-        Claim("The reduced dimension lowers the computation: GH points on the heading alone",
-              "000 sec. 2.2, conclusion",
-              {"sgkf points": rule_points("sgkf", 18), "ckf points": rule_points("ckf", 18),
-               "sgkf ms/epoch": ms_per_epoch("sgkf"), "ckf ms/epoch": ms_per_epoch("ckf")},
-              lambda n: (n["sgkf points"] < n["ckf points"]
-                         and n["sgkf ms/epoch"] < 0.8 * n["ckf ms/epoch"]),
-              "7 points against 36, but the time per epoch is about the CKF's (0.88-1.06x "
-              "in two runs of 20 episodes; a lower computation is taken as below 0.8x, "
-              "outside the timing noise of a campaign): each GH point carries its "
-              "conditional covariance through F(zeta_i) Sigma_c F(zeta_i)^T (ALGORITHMS "
-              "4.9), a 17 x 17 product per point, where a cubature point is one state "
-              "vector", settings={"starts": ("coarse",)},
-              filters=("sgkf", "rdghkf", "ckf")),
-        Claim("Strong tracking keeps the filter stable through abrupt changes: with "
-              "odometer slip bursts the SGKF at least as accurate as the GH filter without it",
-              "000 abstract, conclusion",
-              {"sgkf heading vs truth RMS '": "fine/sgkf/vs_truth/rms_arcmin/2",
-               "rdghkf '": "fine/rdghkf/vs_truth/rms_arcmin/2",
-               "sgkf diverged": "fine/sgkf/diverged_fraction",
-               "sgkf lost": "fine/sgkf/lost_fraction",
-               "rdghkf diverged": "fine/rdghkf/diverged_fraction",
-               "rdghkf lost": "fine/rdghkf/lost_fraction"},
-              lambda n: (n["sgkf diverged"] + n["sgkf lost"]
-                         <= n["rdghkf diverged"] + n["rdghkf lost"]
-                         and n["sgkf heading vs truth RMS '"] <= 1.05 * n["rdghkf '"]),
-              "a 0.5 m slip is a one-epoch outlier (the innovation test flags it), and "
-              "strong tracking takes it for a change of state: lambda ~1400 at each burst, "
-              "the heading sigma 26' -> 460', the heading lost (-190' +- 580' at the stop in "
-              "every episode) where the GH filter without it ends at 0.4'; the paper's "
-              "abrupt changes are the state's, not the sensor's (sgkf-gated, which skips "
-              "outliers, ends at 0.41': docs/paper000.md)",
-              settings={"starts": ("coarse",), "disturbance": "slip"},
-              filters=("sgkf", "rdghkf")),
-    )
-    """aligngym regress: ckf diverges from the large start and is left out, with that start
-    (a diverging filter amplifies last bits without bound: not reproducible); sgkf is in
-    since its warm-up (it diverged in 30 % of the coarse starts before)."""
-    worlds = ("car",)
-    requires = (SensorTable("odometer"), StrapdownImu())
-    state_count = 18
-    observation_features = frozenset({"conditionally-linear"})
-    filter_settings = Experiment.filter_settings | {
-        "attitude_sigma_deg", "feedback_sigma_deg", "measurement_sigma", "position_sigma",
-        "scale_sigma"}
-
-    @property
-    def episode_class(self):
-        return Paper000Episode
-
-    @property
-    def duration(self) -> float:
-        if self.fine_duration is None:
-            return self.scenario_file().duration
-        return self.coarse_start + self.coarse_duration + self.fine_duration
-
-    def scenario_config(self) -> ScenarioConfig:
-        """The scenario with this experiment's duration and disturbance, checked."""
-        config = super().scenario_config()
-        self.check(config)
-        if self.disturbance in ("slip", "all"):
-            config = replace(config, odometer=replace(
-                config.odometer, slips=config.odometer.slips + SLIP_BURSTS))
-        if self.disturbance == "all":
-            config = replace(config, motion=replace(config.motion,
-                                                    roughness_rms=ROUGH_ROAD_RMS))
-        return config
-
-    def check(self, config: ScenarioConfig) -> None:
-        super().check(config)
-        if (not self.starts or set(self.starts) - set(STARTS)
-                or len(set(self.starts)) != len(self.starts)):
-            raise ConfigError(f"starts = {self.starts}; valid: each of "
-                              + ", ".join(STARTS) + " at most once")
-        motion = config.motion
-        if not motion.speed > 0.0:
-            raise ConfigError(f"motion.speed = {motion.speed:g} m/s: paper000's "
-                              "odometer-aided alignment needs the car to drive (speed > 0)")
-        start, end = self.coarse_start, self.coarse_start + self.coarse_duration
-        driving_end = min(motion.stop_time, config.duration)
-        if not (motion.start_time <= start and self.coarse_duration >= 10.0
-                and end < driving_end):
-            raise ConfigError(f"the coarse window [{start:g}, {end:g}] s must lie in the "
-                              f"driving phase [{motion.start_time:g}, {driving_end:g}) s "
-                              "and last >= 10 s")
-        if self.fine_duration is not None and not self.fine_duration >= self.filter_step:
-            raise ConfigError(f"fine_duration = {self.fine_duration:g} s must be >= "
-                              f"filter_step = {self.filter_step:g} s")
-        if self.disturbance != "none":
-            last = max(t + d for t, d, _ in SLIP_BURSTS)
-            if not (end < SLIP_BURSTS[0][0] and last < driving_end):
-                raise ConfigError(f"--disturbance {self.disturbance}: the slip bursts "
-                                  f"({SLIP_BURSTS[0][0]:g}-{last:g} s) must fall in the "
-                                  f"fine alignment's driving phase ({end:g}, "
-                                  f"{driving_end:g}) s")
-        sigma = self.mounting_sigma_deg
-        if sigma is not None and not 0.0 < sigma <= 10.0:
-            raise ConfigError(f"mounting_sigma_deg = {sigma:g} must be in (0, 10] deg")
-
-    def tuning(self, config: ScenarioConfig) -> OdometerTuning:
-        imu = ImuTuning.from_spec(config.imu)
-        return OdometerTuning(
-            attitude_sigma=tuple(a * deg for a in self.attitude_sigma_deg),
-            velocity_sigma=self.velocity_sigma, position_sigma=self.position_sigma,
-            gyro_bias_sigma=imu.gyro_bias_sigma, accel_bias_sigma=imu.accel_bias_sigma,
-            scale_sigma=self.scale_sigma, gyro_noise_density=imu.gyro_noise_density,
-            accel_noise_density=imu.accel_noise_density,
-            measurement_sigma=self.measurement_sigma,
-            mounting_sigma=(None if self.mounting_sigma_deg is None
-                            else self.mounting_sigma_deg * deg))
-
-    def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
-                        ) -> "Paper000Episode":
-        return prepare_episode(self, seed, config)
-
-    def start_errors(self, episodes):
-        coarse = np.stack([e.coarse_error for e in episodes])
-        large = coarse.copy()
-        large[:, 2] = self.large_heading_deg * deg
-        return {"coarse": coarse, "large": large}
-
-    def model(self, episodes, start_error, variant=""):
-        if variant:
-            raise ValueError(f"paper000 has no model variant {variant!r}")
-        start_error = np.broadcast_to(np.asarray(start_error, float), (len(episodes), 3))
-        config = self.scenario_config()
-        feedback = None if self.feedback_sigma_deg is None else self.feedback_sigma_deg * deg
-        inputs = model_inputs(episodes, start_error, self.start_velocity,
-                              self.velocity_sigma)
-        return OdometerLargeHeadingModel(inputs, self.tuning(config), feedback_below=feedback)
-
-    def attitude_sigma(self):
-        return np.deg2rad(self.attitude_sigma_deg)
-
-    def nees(self, result, episodes, error_n):
-        """NEES of the Euler errors, gyro drift and accelerometer bias (9 states)."""
-        K = result.t.size
-        C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
-        x = result.x
-        # C_est = C_p_n(phi^) C_b^n' and C_true = C_p_n(phi) C_b^n': phi from the pair.
-        C_ins = np.swapaxes(C_p_n(x[..., 0:3]), -1, -2) @ result.C_s_n
-        phi = true_state(C_true, C_ins)
-        s = result.series
-        err = np.concatenate([
-            wrap_angle(x[..., 0:3] - phi),
-            s["gyro_bias"] + x[..., 9:12] - np.stack([e.gyro_bias for e in episodes])[:, None],
-            s["accel_bias"] + x[..., 12:15]
-            - np.stack([e.accel_bias for e in episodes])[:, None]], -1)
-        return nees(err, result.P[:, :, NEES_STATES][:, :, :, NEES_STATES])
-
-    def nees_dof(self):
-        return NEES_STATES.size
-
-    def summary(self, result):
-        return paper000_summary(result)
-
-    def plots(self, result, out):
-        return plot_sensor_estimates(result, out)
-
-    def format_tables(self, result):
-        return format_tables(result)
 
 
 @dataclass
@@ -563,6 +335,220 @@ def plot_sensor_estimates(result: CampaignResult, out) -> list:
     save_figure(fig, path, dpi=DPI, **PNG_OPTIONS)
     plt.close(fig)
     return [path]
+
+
+def state_errors(result: FineResult, episodes: list[Paper000Episode],
+                 error_n: np.ndarray) -> np.ndarray:
+    """Estimate minus truth (B, K+1, 9) of the states the NEES compares with the truth:
+    the Euler errors (rad, wrapped; the true ones from C_est = C_p_n(phi^) C_b^n' and
+    C_true = C_p_n(phi) C_b^n'), the gyro drift (rad/s) and the accelerometer bias (m/s^2)
+    (accumulated estimate + state - drawn)."""
+    K = result.t.size
+    C_true = np.stack([e.C_s_n_true[:K] for e in episodes])
+    x = result.x
+    C_ins = np.swapaxes(C_p_n(x[..., PHI]), -1, -2) @ result.C_s_n
+    phi = true_state(C_true, C_ins)
+    s = result.series
+    return np.concatenate([
+        wrap_angle(x[..., PHI] - phi),
+        s["gyro_bias"] + x[..., EPS] - np.stack([e.gyro_bias for e in episodes])[:, None],
+        s["accel_bias"] + x[..., NABLA]
+        - np.stack([e.accel_bias for e in episodes])[:, None]], -1)
+
+
+@dataclass(frozen=True)
+class Paper000Experiment(Experiment):
+    """Settings (SPEC 4.2; assumed values marked). Times in s, angles in deg.
+
+    coarse_start, coarse_duration: the odometer-aided coarse window while driving (from
+    10 s after the car starts, 60 s: *assumed*); fine_duration: the fine alignment after
+    it (None: to the end of the run); attitude_sigma_deg: the filter's P0 of the Euler
+    errors E, N, U (*assumed*: 0.5, 0.5, 30; ALGORITHMS 4.3 suggests 30-60 deg for phi_U);
+    large_heading_deg: the "large" start's heading error (the coarse start's level errors
+    kept); mounting_sigma_deg: P0 of the residual odometer mounting pitch and heading
+    states (None: 000's 16-state model); measurement_sigma: per axis of the 1 s
+    position-increment difference, m (*assumed*: encoder quantization and tyre slip are
+    millimetres to centimetres); feedback_sigma_deg: closed loop once the heading sigma
+    is below it; disturbance: "none", "slip" (odometer slip bursts, ``SLIP_BURSTS``) or
+    "all" (slips and a rough road); reference_settle: s after the stop before the static
+    reference window; starts: the fine alignment's starts (``STARTS``).
+    start_velocity: the INS's velocity at the fine start. "drawn" (*assumed*; the paper
+    gives none): the true velocity plus a draw of P0's velocity sigma per axis, the error
+    the filter's P0 describes, as the attitude start is the truth turned by a drawn or
+    coarse error. "odometer": the odometer's velocity turned by the coarse attitude, all
+    an INS has at the end of the in-motion coarse window; its error |v| times the coarse
+    heading error (0.3-2.6 m/s) lies outside P0's 0.1 m/s, and no Gaussian P0 describes
+    it (it lies on a circle in the heading): rdghkf and ekf then end 12-24' off in
+    heading on ideal data where the drawn start leaves 1'.
+    """
+
+    scenario: str = "ring-road-odometer"
+    coarse_start: float = bounded(15.0, "s", low=0.0, high=MAX_RUN)
+    coarse_duration: float = bounded(60.0, "s", low=10.0, high=MAX_RUN)
+    fine_duration: float | None = bounded(None, "s", low=0.0, high=MAX_RUN, low_open=True)
+    filter_step: float = bounded(1.0, "s", **POSITIVE)
+    attitude_sigma_deg: tuple[float, float, float] = bounded((0.5, 0.5, 30.0), "deg",
+                                                             **POSITIVE)
+    large_heading_deg: float = bounded(30.0, "deg", low=-180.0, high=180.0)
+    velocity_sigma: float = bounded(0.1, "m/s", **POSITIVE)
+    position_sigma: float = bounded(1.0, "m", **POSITIVE)
+    scale_sigma: float = bounded(0.005, **POSITIVE)
+    mounting_sigma_deg: float | None = bounded(1.0, "deg", low=0.0, high=10.0, low_open=True)
+    measurement_sigma: float = bounded(0.02, "m/s", **POSITIVE)
+    feedback_sigma_deg: float | None = bounded(5.0, "deg", **POSITIVE)
+    disturbance: str = setting("none", "odometer slip bursts (slip), and a rough road as "
+                               "well (all)", choices=DISTURBANCES)
+    reference_settle: float = bounded(5.0, "s", low=0.0)
+    rms_window: float = bounded(60.0, "s", **POSITIVE)
+    heading_threshold_arcmin: float = bounded(10.0, "arcmin", **POSITIVE)
+    start_velocity: str = bounded("drawn", choices=START_VELOCITIES)
+    default_filters: tuple[str, ...] = ("sgkf", "rdghkf", "ckf", "ekf")
+    starts: tuple[str, ...] = STARTS
+
+    paper = "000"
+    regress = {"episodes": 2, "seed": 5, "filters": ["sgkf", "rdghkf", "ekf"],
+               "experiment": {"fine_duration": 200.0, "starts": ["coarse"]}}
+    reproduce = {"episodes": 20, "seed": 0}
+    claims = (
+        Claim("The strong-tracking reduced-dimension GH filter (SGKF) aligns more accurately "
+              "than the CKF (heading at the stop against the 5 min static alignment after it)",
+              "000 sec. 3, abstract",
+              {"sgkf heading vs reference RMS '": "fine/sgkf/vs_reference/rms_arcmin/2",
+               "ckf '": "fine/ckf/vs_reference/rms_arcmin/2",
+               "sgkf vs truth '": "fine/sgkf/vs_truth/rms_arcmin/2",
+               "ckf vs truth '": "fine/ckf/vs_truth/rms_arcmin/2"},
+              lambda n: n["sgkf heading vs reference RMS '"] < n["ckf '"],
+              "the reference itself carries the still's gyro-drift error (5.4' std, 20x the "
+              "filters' own); against the truth both end within 0.4' (docs/paper000.md)",
+              settings={"starts": ("coarse",)}, filters=("sgkf", "rdghkf", "ckf")),
+        Claim("The reduced dimension lowers the computation: GH points on the heading alone",
+              "000 sec. 2.2, conclusion",
+              {"sgkf points": rule_points("sgkf", 18), "ckf points": rule_points("ckf", 18),
+               "sgkf ms/epoch": ms_per_epoch("sgkf"), "ckf ms/epoch": ms_per_epoch("ckf")},
+              lambda n: (n["sgkf points"] < n["ckf points"]
+                         and n["sgkf ms/epoch"] < 0.8 * n["ckf ms/epoch"]),
+              "7 points against 36, but the time per epoch is about the CKF's (0.88-1.06x "
+              "in two runs of 20 episodes; a lower computation is taken as below 0.8x, "
+              "outside the timing noise of a campaign): each GH point carries its "
+              "conditional covariance through F(zeta_i) Sigma_c F(zeta_i)^T (ALGORITHMS "
+              "4.9), a 17 x 17 product per point, where a cubature point is one state "
+              "vector", settings={"starts": ("coarse",)},
+              filters=("sgkf", "rdghkf", "ckf")),
+        Claim("Strong tracking keeps the filter stable through abrupt changes: with "
+              "odometer slip bursts the SGKF at least as accurate as the GH filter without it",
+              "000 abstract, conclusion",
+              {"sgkf heading vs truth RMS '": "fine/sgkf/vs_truth/rms_arcmin/2",
+               "rdghkf '": "fine/rdghkf/vs_truth/rms_arcmin/2",
+               "sgkf diverged": "fine/sgkf/diverged_fraction",
+               "sgkf lost": "fine/sgkf/lost_fraction",
+               "rdghkf diverged": "fine/rdghkf/diverged_fraction",
+               "rdghkf lost": "fine/rdghkf/lost_fraction"},
+              lambda n: (n["sgkf diverged"] + n["sgkf lost"]
+                         <= n["rdghkf diverged"] + n["rdghkf lost"]
+                         and n["sgkf heading vs truth RMS '"] <= 1.05 * n["rdghkf '"]),
+              "a 0.5 m slip is a one-epoch outlier (the innovation test flags it), and "
+              "strong tracking takes it for a change of state: lambda ~1400 at each burst, "
+              "the heading sigma 26' -> 460', the heading lost (-190' +- 580' at the stop in "
+              "every episode) where the GH filter without it ends at 0.4'; the paper's "
+              "abrupt changes are the state's, not the sensor's (sgkf-gated, which skips "
+              "outliers, ends at 0.41': docs/paper000.md)",
+              settings={"starts": ("coarse",), "disturbance": "slip"},
+              filters=("sgkf", "rdghkf")),
+    )
+    """aligngym regress: ckf diverges from the large start and is left out, with that start
+    (a diverging filter amplifies last bits without bound: not reproducible); sgkf is in
+    since its warm-up (it diverged in 30 % of the coarse starts before)."""
+    worlds = ("car",)
+    requires = (SensorTable("odometer"), StrapdownImu())
+    state_count = 18
+    observation_features = frozenset({"conditionally-linear"})
+    filter_settings = Experiment.filter_settings | {
+        "attitude_sigma_deg", "feedback_sigma_deg", "measurement_sigma", "position_sigma",
+        "scale_sigma"}
+
+    episode_class = Paper000Episode
+    preparation = staticmethod(prepare_episode)
+    truth_map = TruthMap(LAYOUT, ("misalignment", "gyro_bias", "accel_bias"), state_errors)
+    summarise = staticmethod(paper000_summary)
+    tabulate = staticmethod(format_tables)
+    own_plots = staticmethod(plot_sensor_estimates)
+
+    @property
+    def duration(self) -> float:
+        if self.fine_duration is None:
+            return self.scenario_file().duration
+        return self.coarse_start + self.coarse_duration + self.fine_duration
+
+    def scenario_config(self) -> ScenarioConfig:
+        """The scenario with this experiment's duration and disturbance, checked."""
+        config = super().scenario_config()
+        self.check(config)
+        if self.disturbance in ("slip", "all"):
+            config = replace(config, odometer=replace(
+                config.odometer, slips=config.odometer.slips + SLIP_BURSTS))
+        if self.disturbance == "all":
+            config = replace(config, motion=replace(config.motion,
+                                                    roughness_rms=ROUGH_ROAD_RMS))
+        return config
+
+    def check(self, config: ScenarioConfig) -> None:
+        super().check(config)
+        if (not self.starts or set(self.starts) - set(STARTS)
+                or len(set(self.starts)) != len(self.starts)):
+            raise ConfigError(f"starts = {self.starts}; valid: each of "
+                              + ", ".join(STARTS) + " at most once")
+        motion = config.motion
+        if not motion.speed > 0.0:
+            raise ConfigError(f"motion.speed = {motion.speed:g} m/s: paper000's "
+                              "odometer-aided alignment needs the car to drive (speed > 0)")
+        start, end = self.coarse_start, self.coarse_start + self.coarse_duration
+        driving_end = min(motion.stop_time, config.duration)
+        if not (motion.start_time <= start and self.coarse_duration >= 10.0
+                and end < driving_end):
+            raise ConfigError(f"the coarse window [{start:g}, {end:g}] s must lie in the "
+                              f"driving phase [{motion.start_time:g}, {driving_end:g}) s "
+                              "and last >= 10 s")
+        if self.fine_duration is not None and not self.fine_duration >= self.filter_step:
+            raise ConfigError(f"fine_duration = {self.fine_duration:g} s must be >= "
+                              f"filter_step = {self.filter_step:g} s")
+        if self.disturbance != "none":
+            last = max(t + d for t, d, _ in SLIP_BURSTS)
+            if not (end < SLIP_BURSTS[0][0] and last < driving_end):
+                raise ConfigError(f"--disturbance {self.disturbance}: the slip bursts "
+                                  f"({SLIP_BURSTS[0][0]:g}-{last:g} s) must fall in the "
+                                  f"fine alignment's driving phase ({end:g}, "
+                                  f"{driving_end:g}) s")
+        sigma = self.mounting_sigma_deg
+        if sigma is not None and not 0.0 < sigma <= 10.0:
+            raise ConfigError(f"mounting_sigma_deg = {sigma:g} must be in (0, 10] deg")
+
+    def tuning(self, config: ScenarioConfig) -> OdometerTuning:
+        imu = ImuTuning.from_spec(config.imu)
+        return OdometerTuning(
+            attitude_sigma=tuple(a * deg for a in self.attitude_sigma_deg),
+            velocity_sigma=self.velocity_sigma, position_sigma=self.position_sigma,
+            gyro_bias_sigma=imu.gyro_bias_sigma, accel_bias_sigma=imu.accel_bias_sigma,
+            scale_sigma=self.scale_sigma, gyro_noise_density=imu.gyro_noise_density,
+            accel_noise_density=imu.accel_noise_density,
+            measurement_sigma=self.measurement_sigma,
+            mounting_sigma=(None if self.mounting_sigma_deg is None
+                            else self.mounting_sigma_deg * deg))
+
+    def start_errors(self, episodes):
+        coarse = np.stack([e.coarse_error for e in episodes])
+        large = coarse.copy()
+        large[:, 2] = self.large_heading_deg * deg
+        return {"coarse": coarse, "large": large}
+
+    def model(self, episodes, start_error, variant=""):
+        if variant:
+            raise ValueError(f"paper000 has no model variant {variant!r}")
+        start_error = np.broadcast_to(np.asarray(start_error, float), (len(episodes), 3))
+        config = self.scenario_config()
+        feedback = None if self.feedback_sigma_deg is None else self.feedback_sigma_deg * deg
+        inputs = model_inputs(episodes, start_error, self.start_velocity,
+                              self.velocity_sigma)
+        return OdometerLargeHeadingModel(inputs, self.tuning(config), feedback_below=feedback)
 
 
 EXPERIMENT = Paper000Experiment

@@ -13,21 +13,22 @@ from pathlib import Path
 
 import numpy as np
 
-from aligngym.estimators.inertial_fine import (EPS, NABLA, PHI, FineInputs, FineTuning,
+from aligngym.estimators.alignment import FineResult
+from aligngym.estimators.inertial_fine import (EPS, LAYOUT, NABLA, FineInputs, FineTuning,
                                       InertialFineModel, SwayAwareInertialModel,
                                       SwaySpectrum, fine_inputs, stack_inputs)
 from aligngym.estimators.inertial_frame import (C_n_i, attitude_from_inertial, body_frame_integrals,
                                        coarse_alignment_ib0)
-from aligngym.estimators.metrics import misalignment, nees, static_alignment_floor
+from aligngym.estimators.metrics import misalignment, static_alignment_floor
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.units import arcmin, deg
 from aligngym.models.world import gimbal_C_s_b
 from aligngym.scenarios import campaign
 from aligngym.scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
-                                fine_summary, simulate_screened)
+                                         TruthMap, fine_summary, simulate_screened)
 from aligngym.scenarios.campaign.claims import Claim
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
-from aligngym.scenarios.campaign.experiment import MAX_RUN, POSITIVE, bounded
+from aligngym.scenarios.campaign.settings import MAX_RUN, POSITIVE, bounded
 from aligngym.sensors.imu import ImuTuning
 
 STARTS = ("mean", "max")
@@ -114,6 +115,182 @@ def sway_measurement_sigma(config: ScenarioConfig, duration: float = 600.0
     return tuple(float(s) for s in np.maximum(SWAY_R_FLOOR, SWAY_R_MARGIN * peak))
 
 
+@dataclass
+class Paper003Episode(PreparedEpisode):
+    """One ship episode (``PreparedEpisode``; C_s_b from the gimbal encoders), with
+    coarse_error (3,) rad, phi E, N, U of the coarse alignment at t_k2, and inputs, the
+    shared fine-alignment integrals (batch of one)."""
+
+    coarse_error: np.ndarray
+    inputs: FineInputs
+
+    @property
+    def fine_start(self) -> float:
+        return float(self.inputs.t[0])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {"seed": self.seed, "coarse_error": self.coarse_error, "t": self.inputs.t,
+                "C_s_s0": self.inputs.C_s_s0[0], "dW": self.inputs.dW[0],
+                "Psi": self.inputs.Psi[0], "Psi2": self.inputs.Psi2[0],
+                "C_s_n_true": self.C_s_n_true, "C_b_n_true": self.C_b_n_true,
+                "C_s_b_encoder": self.C_s_b, "gyro_bias": self.gyro_bias,
+                "accel_bias": self.accel_bias, "lat": self.lat, "h": self.h}
+
+    @classmethod
+    def from_arrays(cls, f) -> "Paper003Episode":
+        inputs = FineInputs(t=f["t"], C_s_s0=f["C_s_s0"][None], dW=f["dW"][None],
+                            Psi=f["Psi"][None], Psi2=f["Psi2"][None])
+        return cls(seed=int(f["seed"]), coarse_error=f["coarse_error"], inputs=inputs,
+                   C_s_n_true=f["C_s_n_true"], C_b_n_true=f["C_b_n_true"],
+                   C_s_b=f["C_s_b_encoder"], gyro_bias=f["gyro_bias"],
+                   accel_bias=f["accel_bias"], lat=float(f["lat"]), h=float(f["h"]))
+
+
+def prepare_episode(experiment: Paper003Experiment, seed: int,
+                    config: ScenarioConfig | None = None,
+                    simulated: tuple | None = None) -> Paper003Episode:
+    """Simulate one episode (or take ``simulated``, what ``simulate_screened(config,
+    seed)`` returned), integrate it and run the coarse alignment."""
+    config = config or experiment.scenario_config()
+    episode, flags = simulated or simulate_screened(config, seed)
+    truth = episode.truth
+    lat, h = float(truth.lat[0]), float(truth.h[0])  # known position of the IMU at t0
+    integrals = body_frame_integrals(episode.dtheta, episode.dv, episode.gimbal_encoder,
+                                     np.asarray(config.motion.lever_arm_b),
+                                     config.imu_interval)
+    C_s0_i = coarse_alignment_ib0(integrals, lat, h, experiment.t_k1, experiment.t_k2)
+    k2 = int(round(experiment.t_k2 / config.imu_interval))
+    C_s_n_coarse = attitude_from_inertial(C_s0_i, integrals, k2, lat)
+    C_s_n_all = quat_to_dcm(truth.q_s_n)
+    inputs = fine_inputs(integrals, experiment.coarse_duration, experiment.fine_duration,
+                         experiment.filter_step)
+    idx = np.rint(inputs.t / config.imu_interval).astype(int)
+    enc = episode.gimbal_encoder[idx]
+    return Paper003Episode(
+        **flags,
+        seed=seed, coarse_error=misalignment(C_s_n_all[k2], C_s_n_coarse), inputs=inputs,
+        C_s_n_true=C_s_n_all[idx], C_b_n_true=quat_to_dcm(truth.q_b_n[idx]),
+        C_s_b=gimbal_C_s_b(enc),
+        gyro_bias=episode.imu_realization.gyro.bias,
+        accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h)
+
+
+def coarse_starts(episodes: list[Paper003Episode]) -> dict[str, np.ndarray]:
+    """The fine stage's starts (rad, E, N, U): the mean and the largest (per axis, by
+    magnitude) coarse error of the episodes."""
+    coarse = np.stack([e.coarse_error for e in episodes])
+    return {"mean": coarse.mean(0), "max": signed_extreme(coarse, np.argmax)}
+
+
+def sensor_frame_errors(result: FineResult, episodes: list[Paper003Episode],
+                        error_n: np.ndarray) -> np.ndarray:
+    """Truth minus estimate (B, K+1, 9) of the inertial-frame model's misalignment (error_n
+    (B, K+1, 3) rad, E, N, U, turned into i) and its sensor-frame gyro (rad/s) and
+    accelerometer (m/s^2) biases, against the episodes' drawn biases."""
+    lat = np.array([e.lat for e in episodes])
+    phi_i = np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]), error_n)
+    return np.concatenate([
+        phi_i,
+        np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
+        np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
+
+
+def hull_frame_floor(episodes: list[Paper003Episode]) -> np.ndarray:
+    """The final misalignment (B, 3) rad, E, N, U, that biases fixed in the hull frame
+    leave: the static floor of those biases (``static_alignment_floor``) at the hull's mean
+    attitude over the fine run, which the filter's average sees through the sway."""
+    return np.stack([static_alignment_floor(e.C_b_n_true.mean(0), e.gyro_bias,
+                                            e.accel_bias, e.lat, e.h) for e in episodes])
+
+
+def about_floor_errors(result: FineResult, episodes: list[Paper003Episode],
+                       error_n: np.ndarray) -> np.ndarray:
+    """The misalignment's error (B, K+1, 3) rad about the hull-frame biases' floor
+    (``hull_frame_floor``), turned into i."""
+    lat = np.array([e.lat for e in episodes])
+    floor = hull_frame_floor(episodes)
+    return np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]),
+                     error_n - floor[:, None])
+
+
+SENSOR_FRAME_TRUTH = TruthMap(LAYOUT, ("misalignment", "gyro_bias", "accel_bias"),
+                              sensor_frame_errors)
+"""The NEES of the attitude and the sensor-frame biases (9), in the filter's frames."""
+HULL_FRAME_TRUTH = TruthMap(LAYOUT, ("misalignment",), about_floor_errors)
+"""The NEES of the attitude alone (3), about the floor, when the scenario's biases are
+fixed in the hull frame (the model's sensor-frame bias states then have no true value)."""
+
+
+def signed_extreme(errors: np.ndarray, pick) -> np.ndarray:
+    """Per axis, the signed error whose magnitude is picked (argmax or argmin) (3,)."""
+    idx = pick(np.abs(errors), axis=0)
+    return errors[idx, np.arange(errors.shape[1])]
+
+
+def start_attitude(episodes: list[Paper003Episode], start_error: np.ndarray) -> np.ndarray:
+    """Initial estimate C_s^i(t1) (B, 3, 3): the truth turned by a starting misalignment
+    phi E, N, U (rad), common (3,) or per episode (B, 3)."""
+    C_true = np.stack([e.C_s_n_true[0] for e in episodes])
+    t1 = episodes[0].inputs.t[0]
+    lat = np.array([e.lat for e in episodes])
+    return C_n_i(t1, lat) @ rotvec_to_dcm(-np.asarray(start_error)) @ C_true
+
+
+def coarse_errors(result: CampaignResult) -> np.ndarray:
+    """(N, 3) rad coarse-alignment errors of the campaign's episodes."""
+    return np.stack([e.coarse_error for e in result.episodes])
+
+
+def coarse_summary(result: CampaignResult) -> dict[str, list[float]]:
+    """Mean, max and min of the coarse errors per axis, deg (max/min by magnitude)."""
+    e = coarse_errors(result)
+    return {"mean_deg": list(e.mean(0) / deg),
+            "max_deg": list(signed_extreme(e, np.argmax) / deg),
+            "min_deg": list(signed_extreme(e, np.argmin) / deg)}
+
+
+def format_tables(result: CampaignResult) -> str:
+    """The coarse and fine tables, shaped like the paper's."""
+    exp = result.experiment
+    n = len(result.seeds)
+    coarse = coarse_summary(result)
+    lines = [f"Coarse alignment (inertial frame, {exp.coarse_duration:g} s), {n} runs: "
+             "error (deg)", f"{'':8s}" + "".join(f"{a:>14s}" for a in AXES)]
+    for key, label in (("mean_deg", "mean"), ("max_deg", "max"), ("min_deg", "min")):
+        lines.append(f"{label:8s}" + "".join(f"{v:14.5f}" for v in coarse[key]))
+    floor = exp.unmodelled_floor(result.episodes) if result.episodes else None
+    if floor is not None:
+        lines += ["", "Hull-frame biases leave every episode a floor the model's sensor-frame "
+                  "states cannot hold; diverged = final error - floor > 5 x 3 sigma. Floor "
+                  "(arcmin) " + ", ".join(f"{a} RMS {v:.4f}" for a, v in
+                                          zip(AXES, np.sqrt(np.mean(floor ** 2, 0)) / arcmin))]
+    for start in STARTS:
+        err = result.start_errors[start] / arcmin
+        lines += ["", campaign.format_fine_table(
+            result, start, f"Fine alignment ({exp.fine_duration:g} s) from the {start} "
+            f"coarse error [{', '.join(f'{e:.2f}' for e in err)}] arcmin: final error "
+            "(arcmin)")]
+    return "\n".join(lines)
+
+
+def run_filter(name: str, start: str, start_error: np.ndarray,
+               episodes: list[Paper003Episode], experiment: Paper003Experiment,
+               tuning: FineTuning | None = None) -> campaign.FilterRun:
+    """One filter on all episodes from a starting misalignment phi E, N, U (rad): common
+    (3,) or per episode (B, 3); tuning: the experiment's unless given."""
+    return campaign.run_filter(name, start, start_error, episodes, experiment,
+                               tuning=tuning)
+
+
+def run_campaign(episodes: int = 50, seed: int = 0, filters: list[str] | None = None,
+                 out_dir: str | Path | None = None, resume: bool = False,
+                 workers: int | None = None, experiment: Paper003Experiment | None = None,
+                 progress: bool = True) -> CampaignResult:
+    """Run the paper-003 experiment (``scenarios.campaign.run_campaign``)."""
+    return campaign.run_campaign(experiment or Paper003Experiment(), episodes, seed,
+                                 filters, out_dir, resume, workers, progress)
+
+
 @dataclass(frozen=True)
 class Paper003Experiment(Experiment):
     """The experiment's settings (SPEC 4.1; values the paper omits are marked assumed).
@@ -198,9 +375,12 @@ class Paper003Experiment(Experiment):
         "attitude_sigma_deg", "measurement_sigma", "rho", "start_sway_sigma", "velocity_sigma"}
     starts = STARTS
 
-    @property
-    def episode_class(self):
-        return Paper003Episode
+    episode_class = Paper003Episode
+    preparation = staticmethod(prepare_episode)
+    summarise = staticmethod(lambda result: {"coarse": coarse_summary(result),
+                                             "fine": fine_summary(result)})
+    tabulate = staticmethod(format_tables)
+    start_errors = staticmethod(coarse_starts)
 
     @property
     def duration(self) -> float:
@@ -220,13 +400,6 @@ class Paper003Experiment(Experiment):
                           accel_noise_density=imu.accel_noise_density,
                           measurement_sigma=sigma,
                           step=self.filter_step)
-
-    def prepare_episode(self, seed: int, config: ScenarioConfig | None = None
-                        ) -> "Paper003Episode":
-        return prepare_episode(self, seed, config)
-
-    def start_errors(self, episodes):
-        return coarse_starts(episodes)
 
     model_variants = ("sway-aware",)
 
@@ -249,16 +422,23 @@ class Paper003Experiment(Experiment):
             return SwayAwareInertialModel(*args, sway=sway_spectrum(config))
         raise ValueError(f"paper003 has no model variant {variant!r}")
 
+    @property
+    def truth_map(self) -> TruthMap:
+        """The attitude and biases (``SENSOR_FRAME_TRUTH``), or the attitude alone about
+        the floor when the scenario's biases are fixed in the hull frame
+        (``HULL_FRAME_TRUTH``)."""
+        if self.scenario_config().imu_bias_frame == "hull":
+            return HULL_FRAME_TRUTH
+        return SENSOR_FRAME_TRUTH
+
     def unmodelled_floor(self, episodes):
         """With biases fixed in the hull frame (the paper setup) the model's sensor-frame
         bias states cannot hold the unmodulated part: a converged filter ends on the static
-        floor of the hull-frame biases (``static_alignment_floor`` at the hull's mean
-        attitude over the fine run, which the filter's average sees through the sway; ~3'
-        spread in heading against sigma_U 0.2-0.4'). None otherwise."""
+        floor of the hull-frame biases (``hull_frame_floor``; ~3' spread in heading against
+        sigma_U 0.2-0.4'). None otherwise."""
         if self.scenario_config().imu_bias_frame != "hull":
             return None
-        return np.stack([static_alignment_floor(e.C_b_n_true.mean(0), e.gyro_bias,
-                                                e.accel_bias, e.lat, e.h) for e in episodes])
+        return hull_frame_floor(episodes)
 
     def check(self, config):
         if self.setup == "paper" and config.imu_bias_frame != "hull":
@@ -267,183 +447,6 @@ class Paper003Experiment(Experiment):
 
     def filter_options(self):
         return {"rho": self.rho}
-
-    def attitude_sigma(self):
-        return np.deg2rad(self.attitude_sigma_deg)
-
-    def nees(self, result, episodes, error_n):
-        """NEES over attitude and biases, in the filter's frames (phi in i); attitude only,
-        about the ``unmodelled_floor``, when the scenario's biases are fixed in the hull
-        frame (the model's sensor-frame bias states then have no true value)."""
-        floor = self.unmodelled_floor(episodes)
-        if floor is not None:
-            lat = np.array([e.lat for e in episodes])
-            phi_i = np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]),
-                              error_n - floor[:, None])
-            return nees(phi_i, result.P[:, :, PHI, PHI])
-        return attitude_bias_nees(result, episodes, error_n)
-
-    def nees_dof(self):
-        """3 (attitude) with hull-frame biases, else 9 (attitude and biases)."""
-        return 3 if self.scenario_config().imu_bias_frame == "hull" else 9
-
-    def summary(self, result):
-        return {"coarse": coarse_summary(result), "fine": fine_summary(result)}
-
-    def format_tables(self, result):
-        return format_tables(result)
-
-
-@dataclass
-class Paper003Episode(PreparedEpisode):
-    """One ship episode (``PreparedEpisode``; C_s_b from the gimbal encoders), with
-    coarse_error (3,) rad, phi E, N, U of the coarse alignment at t_k2, and inputs, the
-    shared fine-alignment integrals (batch of one)."""
-
-    coarse_error: np.ndarray
-    inputs: FineInputs
-
-    @property
-    def fine_start(self) -> float:
-        return float(self.inputs.t[0])
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        return {"seed": self.seed, "coarse_error": self.coarse_error, "t": self.inputs.t,
-                "C_s_s0": self.inputs.C_s_s0[0], "dW": self.inputs.dW[0],
-                "Psi": self.inputs.Psi[0], "Psi2": self.inputs.Psi2[0],
-                "C_s_n_true": self.C_s_n_true, "C_b_n_true": self.C_b_n_true,
-                "C_s_b_encoder": self.C_s_b, "gyro_bias": self.gyro_bias,
-                "accel_bias": self.accel_bias, "lat": self.lat, "h": self.h}
-
-    @classmethod
-    def from_arrays(cls, f) -> "Paper003Episode":
-        inputs = FineInputs(t=f["t"], C_s_s0=f["C_s_s0"][None], dW=f["dW"][None],
-                            Psi=f["Psi"][None], Psi2=f["Psi2"][None])
-        return cls(seed=int(f["seed"]), coarse_error=f["coarse_error"], inputs=inputs,
-                   C_s_n_true=f["C_s_n_true"], C_b_n_true=f["C_b_n_true"],
-                   C_s_b=f["C_s_b_encoder"], gyro_bias=f["gyro_bias"],
-                   accel_bias=f["accel_bias"], lat=float(f["lat"]), h=float(f["h"]))
-
-
-def prepare_episode(experiment: Paper003Experiment, seed: int,
-                    config: ScenarioConfig | None = None,
-                    simulated: tuple | None = None) -> Paper003Episode:
-    """Simulate one episode (or take ``simulated``, what ``simulate_screened(config,
-    seed)`` returned), integrate it and run the coarse alignment."""
-    config = config or experiment.scenario_config()
-    episode, flags = simulated or simulate_screened(config, seed)
-    truth = episode.truth
-    lat, h = float(truth.lat[0]), float(truth.h[0])  # known position of the IMU at t0
-    integrals = body_frame_integrals(episode.dtheta, episode.dv, episode.gimbal_encoder,
-                                     np.asarray(config.motion.lever_arm_b),
-                                     config.imu_interval)
-    C_s0_i = coarse_alignment_ib0(integrals, lat, h, experiment.t_k1, experiment.t_k2)
-    k2 = int(round(experiment.t_k2 / config.imu_interval))
-    C_s_n_coarse = attitude_from_inertial(C_s0_i, integrals, k2, lat)
-    C_s_n_all = quat_to_dcm(truth.q_s_n)
-    inputs = fine_inputs(integrals, experiment.coarse_duration, experiment.fine_duration,
-                         experiment.filter_step)
-    idx = np.rint(inputs.t / config.imu_interval).astype(int)
-    enc = episode.gimbal_encoder[idx]
-    return Paper003Episode(
-        **flags,
-        seed=seed, coarse_error=misalignment(C_s_n_all[k2], C_s_n_coarse), inputs=inputs,
-        C_s_n_true=C_s_n_all[idx], C_b_n_true=quat_to_dcm(truth.q_b_n[idx]),
-        C_s_b=gimbal_C_s_b(enc),
-        gyro_bias=episode.imu_realization.gyro.bias,
-        accel_bias=episode.imu_realization.accel.bias, lat=lat, h=h)
-
-
-def coarse_starts(episodes: list[Paper003Episode]) -> dict[str, np.ndarray]:
-    """The fine stage's starts (rad, E, N, U): the mean and the largest (per axis, by
-    magnitude) coarse error of the episodes."""
-    coarse = np.stack([e.coarse_error for e in episodes])
-    return {"mean": coarse.mean(0), "max": signed_extreme(coarse, np.argmax)}
-
-
-def attitude_bias_nees(result, episodes: list[Paper003Episode], error_n: np.ndarray
-                       ) -> np.ndarray:
-    """NEES (B, K+1) of the inertial-frame model's misalignment (error_n (B, K+1, 3) rad,
-    E, N, U, turned into i) and sensor-frame gyro and accelerometer biases, against the
-    episodes' drawn biases: 9 degrees of freedom."""
-    lat = np.array([e.lat for e in episodes])
-    phi_i = np.einsum("bkij,bkj->bki", C_n_i(result.t[None], lat[:, None]), error_n)
-    err = np.concatenate([
-        phi_i,
-        np.stack([e.gyro_bias for e in episodes])[:, None] - result.x[:, :, EPS],
-        np.stack([e.accel_bias for e in episodes])[:, None] - result.x[:, :, NABLA]], -1)
-    sub = np.r_[PHI, EPS, NABLA]
-    return nees(err, result.P[:, :, sub][:, :, :, sub])
-
-
-def signed_extreme(errors: np.ndarray, pick) -> np.ndarray:
-    """Per axis, the signed error whose magnitude is picked (argmax or argmin) (3,)."""
-    idx = pick(np.abs(errors), axis=0)
-    return errors[idx, np.arange(errors.shape[1])]
-
-
-def start_attitude(episodes: list[Paper003Episode], start_error: np.ndarray) -> np.ndarray:
-    """Initial estimate C_s^i(t1) (B, 3, 3): the truth turned by a starting misalignment
-    phi E, N, U (rad), common (3,) or per episode (B, 3)."""
-    C_true = np.stack([e.C_s_n_true[0] for e in episodes])
-    t1 = episodes[0].inputs.t[0]
-    lat = np.array([e.lat for e in episodes])
-    return C_n_i(t1, lat) @ rotvec_to_dcm(-np.asarray(start_error)) @ C_true
-
-
-def coarse_errors(result: CampaignResult) -> np.ndarray:
-    """(N, 3) rad coarse-alignment errors of the campaign's episodes."""
-    return np.stack([e.coarse_error for e in result.episodes])
-
-
-def coarse_summary(result: CampaignResult) -> dict[str, list[float]]:
-    """Mean, max and min of the coarse errors per axis, deg (max/min by magnitude)."""
-    e = coarse_errors(result)
-    return {"mean_deg": list(e.mean(0) / deg),
-            "max_deg": list(signed_extreme(e, np.argmax) / deg),
-            "min_deg": list(signed_extreme(e, np.argmin) / deg)}
-
-
-def format_tables(result: CampaignResult) -> str:
-    """The coarse and fine tables, shaped like the paper's."""
-    exp = result.experiment
-    n = len(result.seeds)
-    coarse = coarse_summary(result)
-    lines = [f"Coarse alignment (inertial frame, {exp.coarse_duration:g} s), {n} runs: "
-             "error (deg)", f"{'':8s}" + "".join(f"{a:>14s}" for a in AXES)]
-    for key, label in (("mean_deg", "mean"), ("max_deg", "max"), ("min_deg", "min")):
-        lines.append(f"{label:8s}" + "".join(f"{v:14.5f}" for v in coarse[key]))
-    floor = exp.unmodelled_floor(result.episodes) if result.episodes else None
-    if floor is not None:
-        lines += ["", "Hull-frame biases leave every episode a floor the model's sensor-frame "
-                  "states cannot hold; diverged = final error - floor > 5 x 3 sigma. Floor "
-                  "(arcmin) " + ", ".join(f"{a} RMS {v:.4f}" for a, v in
-                                          zip(AXES, np.sqrt(np.mean(floor ** 2, 0)) / arcmin))]
-    for start in STARTS:
-        err = result.start_errors[start] / arcmin
-        lines += ["", campaign.format_fine_table(
-            result, start, f"Fine alignment ({exp.fine_duration:g} s) from the {start} "
-            f"coarse error [{', '.join(f'{e:.2f}' for e in err)}] arcmin: final error "
-            "(arcmin)")]
-    return "\n".join(lines)
-
-
-def run_filter(name: str, start: str, start_error: np.ndarray,
-               episodes: list[Paper003Episode], experiment: Paper003Experiment,
-               tuning: FineTuning | None = None) -> campaign.FilterRun:
-    """One filter on all episodes from a starting misalignment phi E, N, U (rad): common
-    (3,) or per episode (B, 3); tuning: the experiment's unless given."""
-    return campaign.run_filter(name, start, start_error, episodes, experiment,
-                               tuning=tuning)
-
-
-def run_campaign(episodes: int = 50, seed: int = 0, filters: list[str] | None = None,
-                 out_dir: str | Path | None = None, resume: bool = False,
-                 workers: int | None = None, experiment: Paper003Experiment | None = None,
-                 progress: bool = True) -> CampaignResult:
-    """Run the paper-003 experiment (``scenarios.campaign.run_campaign``)."""
-    return campaign.run_campaign(experiment or Paper003Experiment(), episodes, seed,
-                                 filters, out_dir, resume, workers, progress)
 
 
 EXPERIMENT = Paper003Experiment
