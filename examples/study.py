@@ -46,7 +46,7 @@ from scipy import stats
 import aligngym  # noqa: F401  (registers the env ids)
 from aligngym.estimators.catalogue import filter_entry
 from aligngym.scenarios.bank import EpisodeBank, split_seeds
-from aligngym.scenarios.env import REWARDS, episode_step_count
+from aligngym.scenarios.env_core import REWARDS, episode_step_count
 from aligngym.scenarios.experiments import env_experiment
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 

@@ -24,7 +24,7 @@ from aligngym.estimators.metrics import STATUSES
 from aligngym.scenarios.atomic import write_text
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.figure_statistics import as_percent
-from aligngym.scenarios.figures import FIGURE_CAPTIONS, figure_caption
+from aligngym.scenarios.figure_captions import FIGURE_CAPTIONS, figure_caption
 
 REQUIRED = ("settings.json", "results.csv", "tables.txt")
 """Files of a campaign directory the report reads (``write_outputs`` writes them)."""

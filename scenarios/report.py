@@ -14,8 +14,8 @@ import numpy as np
 from aligngym.models.units import arcmin
 from aligngym.scenarios.atomic import atomic_path, write_json, write_text
 from aligngym.scenarios.campaign import AXES, CampaignResult, episode_metrics
+from aligngym.scenarios.figure_jobs import FigureDrawing, figure_jobs
 from aligngym.scenarios.figure_statistics import nees_band_summary
-from aligngym.scenarios.figures import FigureDrawing, figure_jobs
 
 TIDY_COLUMNS = (
     ["seed", "filter", "start"]
@@ -84,8 +84,8 @@ def write_outputs(result: CampaignResult, out_dir: str | Path | None,
     """Write to out_dir results.csv, coarse.csv (experiments with a coarse stage),
     timeseries.npz, tables.txt (``format_tables``), summary.json (the JSON summary),
     settings.json (``campaign_settings``; command: the command line, for the record), the
-    campaign figures (``scenarios.figures``, drawn in up to ``processes`` worker processes
-    while the rest is written; None: the cores) and the experiment's own (PNG;
+    campaign figures (``scenarios.figure_jobs``, drawn in up to ``processes`` worker
+    processes while the rest is written; None: the cores) and the experiment's own (PNG;
     figures=False leaves them out); and the JSON summary to json_path. Returns the paths
     written."""
     written = []

@@ -28,7 +28,7 @@ from gymnasium.vector.utils import batch_space
 
 from aligngym.models.units import arcmin
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.env import Cohort, EnvCore
+from aligngym.scenarios.env_core import Cohort, EnvCore
 
 
 class AlignmentVectorEnv(EnvCore, VectorEnv):

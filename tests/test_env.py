@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env
 from aligngym import scenarios
 from aligngym.envs import ENV_IDS, ENV_SCENARIOS
 from aligngym.scenarios.config import ConfigError, load_scenario
-from aligngym.scenarios.env import OBS_SIZE
+from aligngym.scenarios.env_core import OBS_SIZE
 from aligngym.scenarios.experiments.paper003 import run_campaign
 
 SHIP_ID = "aligngym/ShipSwayRotary-v1"
@@ -281,7 +281,7 @@ def test_observation_holds_the_whole_innovation(env_id, measured):
     """Every component of the measurement's innovation, normalised by its predicted sigma
     (001: position, velocity and the GPS heading, which is missing while the car stands:
     0), then nothing in the unused slots."""
-    from aligngym.scenarios.env import INNOVATIONS
+    from aligngym.scenarios.env_core import INNOVATIONS
     env = gym.make(env_id, **short(env_id))
     env.reset(seed=3)
     for _ in range(5):

@@ -15,9 +15,9 @@ from scipy.stats import chi2
 
 from aligngym.models.units import arcmin
 from aligngym.scenarios import figures
+from aligngym.scenarios.figure_jobs import write_figures
 from aligngym.scenarios.figure_statistics import (identical_runs, nees_band_summary,
                                                   nees_curves, nees_excursions)
-from aligngym.scenarios.figures import write_figures
 from aligngym.scenarios.html_report import render_report
 
 DOF, EPISODES = 4, 5

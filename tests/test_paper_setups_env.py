@@ -14,7 +14,7 @@ from aligngym import scenarios
 from aligngym.envs import ENV_IDS, ENV_SCENARIOS
 from aligngym.scenarios.campaign import episode_seeds
 from aligngym.scenarios.config import ConfigError, load_scenario
-from aligngym.scenarios.env import OBS_SIZE
+from aligngym.scenarios.env_core import OBS_SIZE
 from aligngym.scenarios.experiments import experiment
 from aligngym.scenarios.registry import DATA_DIR, GENERIC_ENV_ID, env_id, scenario_names
 

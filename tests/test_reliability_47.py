@@ -219,7 +219,7 @@ def test_reproduce_and_bank_refuse_a_huge_episodes_before_writing(tmp_path, caps
     (600.0, 1.1, 545), (0.3, 0.1, 3), (0.7, 0.1, 7), (1.0, 0.1, 10), (600.0, 1.0, 600),
     (5.0, 5.0, 1), (0.6, 0.2, 3)])
 def test_the_step_count_is_the_whole_epochs_in_the_episode(length, epoch, steps):
-    from aligngym.scenarios.env import episode_step_count
+    from aligngym.scenarios.env_core import episode_step_count
     assert episode_step_count(length, epoch) == steps
 
 
@@ -332,7 +332,7 @@ def test_paper003s_env_steps_whole_epochs_that_do_not_divide_the_episode(epoch):
     divide it: floor(5 / epoch) steps, then truncated (it refused: its model cut
     round(5 / epoch) steps, one beyond the data)."""
     import gymnasium as gym
-    from aligngym.scenarios.env import episode_step_count
+    from aligngym.scenarios.env_core import episode_step_count
     env = gym.make("aligngym/ShipSwayRotary-v1", episode_length=5.0, epoch_length=epoch)
     env.reset(seed=0)
     steps, truncated = 0, False

@@ -180,7 +180,7 @@ def test_figures_draw_diverged_episodes_without_warnings(tmp_path):
     """A filter with every episode diverged (its errors NaN after the event) and one with
     one of four: the four figures are drawn, without a NaN warning."""
     import warnings
-    from aligngym.scenarios.figures import write_figures
+    from aligngym.scenarios.figure_jobs import write_figures
     rng = np.random.default_rng(2)
     K = 50
     error = rng.normal(0.0, 1.0, (4, K, 3)) / (1.0 + np.arange(K))[:, None]
@@ -499,18 +499,18 @@ def test_figures_are_drawn_in_workers_that_hold_no_lock(tmp_path, monkeypatch):
     import os
     from functools import partial
 
-    from aligngym.scenarios import figures
+    from aligngym.scenarios.figure_jobs import FigureDrawing
     from aligngym.scenarios.campaign import executors
     from aligngym.scenarios.campaign.manifest import campaign_lock
     monkeypatch.setattr(executors, "usable_cores", lambda: 2)
     with campaign_lock(tmp_path):
-        drawing = figures.FigureDrawing.start([partial(_worker_facts, n) for n in "abc"])
+        drawing = FigureDrawing.start([partial(_worker_facts, n) for n in "abc"])
         paths = drawing.finish()
     names = [p.name.split("-") for p in paths]
     assert [n[0] for n in names] == ["a", "b", "c"]
     assert all(int(n[1]) != os.getpid() and n[2] == "0" for n in names)
     with pytest.raises(RuntimeError, match="a figure failed"):
-        figures.FigureDrawing.start([partial(_worker_facts, "x"), _failing_job]).finish()
-    assert figures.FigureDrawing.start([]).finish() == []
+        FigureDrawing.start([partial(_worker_facts, "x"), _failing_job]).finish()
+    assert FigureDrawing.start([]).finish() == []
     with pytest.raises(ValueError, match="figure processes = 0 must be >= 1"):
-        figures.FigureDrawing.start([_failing_job], processes=0)
+        FigureDrawing.start([_failing_job], processes=0)

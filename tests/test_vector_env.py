@@ -9,7 +9,7 @@ from gymnasium.vector import AutoresetMode
 import aligngym  # noqa: F401  (registers the ids)
 from aligngym.scenarios.bank import SPLITS, EpisodeBank, split_of, split_seeds
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.env import ELAPSED, OBS_SIZE
+from aligngym.scenarios.env_core import ELAPSED, OBS_SIZE
 from aligngym.scenarios.experiments import experiment_for
 from aligngym.scenarios.vector_env import AlignmentVectorEnv
 
