@@ -37,6 +37,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 FAST = "-x -q -n 0 -p no:cacheprovider"
+ADAPTATION_TESTS = ("tests/test_adaptation.py tests/test_adaptation_001.py "
+                    "tests/test_adaptation_mutants.py")
+"""The fast tests of the adaptation policies (protocol, fading factors, robust)."""
 TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     # module: (the fast tests aimed at it, the functions mutated (None: all))
     "estimators/linalg.py": ("tests/test_linalg.py tests/test_filters.py", None),
@@ -53,8 +56,9 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
                             "tests/test_linear_exactness.py", None),
     "estimators/strapdown.py": ("tests/test_strapdown_units.py tests/test_strapdown.py -k "
                                 "'not fidelity'", None),
-    "estimators/adaptation.py": ("tests/test_adaptation.py tests/test_adaptation_001.py "
-                                 "tests/test_adaptation_mutants.py", None),
+    "estimators/adaptation.py": (ADAPTATION_TESTS, None),
+    "estimators/fading_factors.py": (ADAPTATION_TESTS, None),
+    "estimators/robust_adaptive.py": (ADAPTATION_TESTS, None),
     "sensors/imu.py": ("tests/test_imu.py tests/test_imu_units.py", None),
     "sensors/encoder.py": ("tests/test_imu.py tests/test_encoder.py", None),
 }
@@ -242,12 +246,15 @@ EQUIVALENT.update({
 })
 _STACK = "C_p_n of a (B, K, 3) state is a (B, K, 3, 3) stack: axis 2 is axis -2"
 EQUIVALENT.update({
-    "scenarios/experiments/paper002.py:190: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, +2) @ "
+    "scenarios/experiments/paper002.py:193: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, +2) @ "
     "result.C_s_n": _STACK,
-    "scenarios/experiments/paper002.py:190: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, 2) @ "
+    "scenarios/experiments/paper002.py:193: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, 2) @ "
     "result.C_s_n": _STACK,
 })
-_AD = "estimators/adaptation.py:"
+_FF = "estimators/fading_factors.py:"
+_RA = "estimators/robust_adaptive.py:"
+# The policies' keys, by the lines of fading_factors.py and robust_adaptive.py (the code
+# of estimators/adaptation.py's re-run of 2026-12-06, moved there verbatim).
 _AD_BOOL = ("valid, active, acting, solved, flagged, _started and the comparisons are "
             "boolean arrays: numpy multiplies them as a logical and and adds them as an or")
 _AD_2D = "valid, e, diag_S, lam, s and w are (B, m), nonzero[0] (m, n): axis 1 is axis -1"
@@ -265,116 +272,120 @@ _AD_STRING = ('axes is "measurement" or "local-level" (checked): "measurement" <
 _AD_MISSING = ("the standardised residual of a missing component, which the next line "
                "replaces by weight 1 (np.where(acting & valid, ..., 1.0))")
 EQUIVALENT.update({
-    **{_AD + key: _AD_BOOL for key in (
-        "178: self._started = self._started + complete",
-        "242: S = identity_where_not(valid[:, :, None] * valid[:, None, :], ctx.S)",
-        "246: flagged = solved * (nis > chi2_quantile(self.outlier_probability, dof))",
-        "250: return flagged * (self._flagged_run <= self.outlier_run)",
-        "266: C = self.innovation_covariance(ctx.innovation, valid * active[:, None])",
-        "447: return _moving(ctx) * ctx.valid.any(-1)",
-        "456: w = np.where(acting[:, None] * valid, igg3_weights(standardized, self.k0, "
+    **{key: _AD_BOOL for key in (
+        _FF + "77: self._started = self._started + complete",
+        _FF + "141: S = identity_where_not(valid[:, :, None] * valid[:, None, :], ctx.S)",
+        _FF + "145: flagged = solved * (nis > chi2_quantile(self.outlier_probability, dof))",
+        _FF + "149: return flagged * (self._flagged_run <= self.outlier_run)",
+        _FF + "165: C = self.innovation_covariance(ctx.innovation, valid * active[:, None])",
+        _RA + "69: return _moving(ctx) * ctx.valid.any(-1)",
+        _RA + "78: w = np.where(acting[:, None] * valid, igg3_weights(standardized, self.k0, "
         "self.k1),",
-        "460: w = np.where((w == 0.0) * (self._streak >= self.max_rejections), 1.0, w)",
-        "487: kept = ctx.valid * (w > 0.0)       # a rejected outlier says nothing of the "
-        "state",
-        "539: measured = ctx.valid * np.any(U != 0.0, -1) & acting[:, None] & (w_obs > 0.0)",
-        "539: measured = ctx.valid & np.any(U != 0.0, -1) * acting[:, None] & (w_obs > 0.0)",
-        "539: measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] * (w_obs > 0.0)",
-        "543: outside = measured * (sigma > 0.0) & (misclosure > self.m * sigma)",
-        "543: outside = measured & (sigma > 0.0) * (misclosure > self.m * sigma)")},
-    **{_AD + f"{line}: {text.format(a)}": _AD_2D for a in ("+1", "1") for line, text in (
-        (88, "cols = np.argmax(nonzero[0], axis={})"),
-        (171, "complete = (np.ones(outer.shape[0], bool) if valid is None else "
-              "valid.all({}))"),
-        (245, "dof = np.maximum(valid.sum({}), 1)"),
-        (300, "m, n = s.shape[{}], J.shape[-1]"),
-        (387, "self.n_factors = lam.shape[{}]"),
-        (447, "return _moving(ctx) & ctx.valid.any({})"),
-        (491, "delta = np.sqrt(np.sum(np.where(kept, e * e, 0.0), {})"),
-        (492, "/ np.sum(np.where(kept, diag_S, 0.0), {}))"),
-        (494, "self.n_factors = 1 + w.shape[{}]"),
-        (496, "return Adjustment(P_pred, R, np.concatenate([alpha[:, None], w], {}),"),
-        (547, "self.n_factors = 2 * w.shape[{}]"),
-        (548, "return Adjustment(W_inv @ J @ W_inv, R, np.concatenate([w, w_obs], {}),"))},
-    **{_AD + f"{line}: {text.format(i)}": _AD_SQ for i in ("+1", "1", "~1", "- 2")
-       for line, text in (
-        (300, "m, n = s.shape[-1], J.shape[{}]"),
-        (546, 'W_inv = np.eye(J.shape[{}]) + np.einsum("bi,bin,bik->bnk", 1.0 / w - 1.0, '
-              'U, U)'))},
-    **{_AD + f"{line}: {text.format(a, b)}": _AD_L
+        _RA + "82: w = np.where((w == 0.0) * (self._streak >= self.max_rejections), 1.0, w)",
+        _RA + "109: kept = ctx.valid * (w > 0.0)       # a rejected outlier says nothing of "
+        "the state",
+        _RA + "161: measured = ctx.valid * np.any(U != 0.0, -1) & acting[:, None] & "
+        "(w_obs > 0.0)",
+        _RA + "161: measured = ctx.valid & np.any(U != 0.0, -1) * acting[:, None] & "
+        "(w_obs > 0.0)",
+        _RA + "161: measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] * "
+        "(w_obs > 0.0)",
+        _RA + "165: outside = measured * (sigma > 0.0) & (misclosure > self.m * sigma)",
+        _RA + "165: outside = measured & (sigma > 0.0) * (misclosure > self.m * sigma)")},
+    **{f"{where}: {text.format(a)}": _AD_2D for a in ("+1", "1") for where, text in (
+        (_FF + "34", "cols = np.argmax(nonzero[0], axis={})"),
+        (_FF + "70", "complete = (np.ones(outer.shape[0], bool) if valid is None else "
+                     "valid.all({}))"),
+        (_FF + "144", "dof = np.maximum(valid.sum({}), 1)"),
+        (_FF + "199", "m, n = s.shape[{}], J.shape[-1]"),
+        (_FF + "286", "self.n_factors = lam.shape[{}]"),
+        (_RA + "69", "return _moving(ctx) & ctx.valid.any({})"),
+        (_RA + "113", "delta = np.sqrt(np.sum(np.where(kept, e * e, 0.0), {})"),
+        (_RA + "114", "/ np.sum(np.where(kept, diag_S, 0.0), {}))"),
+        (_RA + "116", "self.n_factors = 1 + w.shape[{}]"),
+        (_RA + "118", "return Adjustment(P_pred, R, np.concatenate([alpha[:, None], w], {}),"),
+        (_RA + "169", "self.n_factors = 2 * w.shape[{}]"),
+        (_RA + "170", "return Adjustment(W_inv @ J @ W_inv, R, np.concatenate([w, w_obs], {}),"))},
+    **{f"{where}: {text.format(i)}": _AD_SQ for i in ("+1", "1", "~1", "- 2")
+       for where, text in (
+        (_FF + "199", "m, n = s.shape[-1], J.shape[{}]"),
+        (_RA + "168", 'W_inv = np.eye(J.shape[{}]) + np.einsum("bi,bin,bik->bnk", 1.0 / w - 1.0, '
+                      'U, U)'))},
+    **{_FF + f"{line}: {text.format(a, b)}": _AD_L
        for a, b in (("+1", "-2"), ("- 2", "-2"), ("-1", "+2"), ("-1", "- 1"), ("-1", "2"),
                     ("1", "-2"), ("~1", "-2"))
-       for line, text in ((334, "return Adjustment(L @ ctx.PhiPPhi @ np.swapaxes(L, {}, {}) "
+       for line, text in ((233, "return Adjustment(L @ ctx.PhiPPhi @ np.swapaxes(L, {}, {}) "
                                 "+ ctx.Q, None, lam)"),
-                          (348, "return Adjustment(L @ J @ np.swapaxes(L, {}, {}), None, "
+                          (247, "return Adjustment(L @ J @ np.swapaxes(L, {}, {}), None, "
                                 "lam)"))},
-    **{_AD + f"435: def __init__(self, k0: float = {k0}, k1: float = {k1}, max_rejections: "
+    **{_RA + f"57: def __init__(self, k0: float = {k0}, k1: float = {k1}, max_rejections: "
        f"int = {r}) -> None:": "base-class defaults every subclass overrides "
        "(RobustAdaptive and SelectiveWeights pass k0, k1 and max_rejections)"
        for k0, k1, r in (("1.0", "6.0", 3), ("3.0", "6.0", 3), ("2.0", "5.0", 3),
                          ("2.0", "7.0", 3), ("2.0", "6.0", 2), ("2.0", "6.0", 4))},
-    **{_AD + f"{line}: n_factors = {v}": _AD_WIDTH for line in (474, 515) for v in (0, 2)},
-    **{_AD + key: _AD_W for key in (
-        "460: w = np.where((w <= 0.0) & (self._streak >= self.max_rejections), 1.0, w)",
-        "461: self._streak = np.where(valid, np.where(w <= 0.0, self._streak + 1, 0), "
+    **{_RA + f"{line}: n_factors = {v}": _AD_WIDTH for line in (96, 137) for v in (0, 2)},
+    **{_RA + key: _AD_W for key in (
+        "82: w = np.where((w <= 0.0) & (self._streak >= self.max_rejections), 1.0, w)",
+        "83: self._streak = np.where(valid, np.where(w <= 0.0, self._streak + 1, 0), "
         "self._streak)",
-        "497: rejected=w <= 0.0)", "549: rejected=w_obs <= 0.0)")},
-    **{_AD + f"455: standardized = np.where(valid, ctx.innovation / np.sqrt(diag_S), {v})":
+        "119: rejected=w <= 0.0)", "171: rejected=w_obs <= 0.0)")},
+    **{_RA + f"77: standardized = np.where(valid, ctx.innovation / np.sqrt(diag_S), {v})":
        _AD_MISSING for v in ("1.0", "-1.0")},
-    **{_AD + f"456: w = np.where(acting[:, None] {op} valid, igg3_weights(standardized, "
+    **{_RA + f"78: w = np.where(acting[:, None] {op} valid, igg3_weights(standardized, "
        "self.k0, self.k1),": "also weighs the missing components, whose standardised "
        "residual is 0 (the line above): IGG-III weight 1 (k0 > 0), as when not weighed"
        for op in ("**", "<<")},
-    _AD + "460: w = np.where((w == 0.0) & (self._streak == self.max_rejections), 1.0, w)":
+    _RA + "82: w = np.where((w == 0.0) & (self._streak == self.max_rejections), 1.0, w)":
         "the streak (a count of epochs, as max_rejections) never exceeds max_rejections: "
         "there a zero weight becomes 1 and the next line resets the streak to 0",
-    _AD + "294: if self.axes <= \"local-level\" else set()))": _AD_STRING,
-    _AD + "304: if self.axes <= \"local-level\":": _AD_STRING,
-    _AD + "399: return np.where(a < k0, 1.0, np.where(a <= k1, middle, 0.0))":
+    _FF + "193: if self.axes <= \"local-level\" else set()))": _AD_STRING,
+    _FF + "203: if self.axes <= \"local-level\":": _AD_STRING,
+    _RA + "21: return np.where(a < k0, 1.0, np.where(a <= k1, middle, 0.0))":
         "at |v| = k0 the middle branch is (k0/k0)((k1 - k0)/(k1 - k0))^2 = 1 exactly",
-    _AD + "410: alpha = np.where(d < c0, 1.0, np.where(d <= c1, middle, 0.0))":
+    _RA + "32: alpha = np.where(d < c0, 1.0, np.where(d <= c1, middle, 0.0))":
         "at Delta = c0 the middle branch is (c0/c0)((c1 - c0)/(c1 - c0))^2 = 1 exactly",
-    _AD + "543: outside = measured & (sigma > 0.0) & (misclosure >= self.m * sigma)":
+    _RA + "165: outside = measured & (sigma > 0.0) & (misclosure >= self.m * sigma)":
         "at |L| = m sigma the weight m sigma / |L| is 1 exactly: W^-1 = I either way",
-    _AD + "543: outside = measured & (sigma != 0.0) & (misclosure > self.m * sigma)":
+    _RA + "165: outside = measured & (sigma != 0.0) & (misclosure > self.m * sigma)":
         "sigma is the square root of a value floored at 0: never negative (a NaN fails the "
         "next comparison either way)",
-    _AD + "447: return _moving(ctx) ** ctx.valid.any(-1)": "differs (moving | ~any) only in "
+    _RA + "69: return _moving(ctx) ** ctx.valid.any(-1)": "differs (moving | ~any) only in "
         "an episode with no component present, where acting changes nothing: every "
         "weight is 1, no state weight forms, and Delta = 0/0 -> 0 gives alpha = 1",
-    _AD + "539: measured = ctx.valid ** np.any(U != 0.0, -1) & acting[:, None] & "
+    _RA + "161: measured = ctx.valid ** np.any(U != 0.0, -1) & acting[:, None] & "
           "(w_obs > 0.0)": "adds only missing components without a state direction "
         "(valid | ~direction): a zero row of U has sigma 0, so no state weight forms",
-    _AD + "92: if (np.any(nonzero != selection) or len(set(cols.tolist())) < m):":
+    _FF + "38: if (np.any(nonzero != selection) or len(set(cols.tolist())) < m):":
         "m columns have at most m distinct values: != m is < m",
-    _AD + "88: cols = np.argmax(nonzero[ -1], axis=-1)": "the next line refuses any H "
+    _FF + "34: cols = np.argmax(nonzero[ -1], axis=-1)": "the next line refuses any H "
         "whose episodes' nonzero patterns differ from the selection: when it passes, "
         "every episode (the first or the last) gives the same columns",
-    _AD + "190: self.floor = float(floor_) if floor_.ndim <= 0 else floor_":
+    _FF + "89: self.floor = float(floor_) if floor_.ndim <= 0 else floor_":
         "ndim is never negative: <= 0 is == 0",
-    _AD + "230: self._flagged_run = np.zeros( 1, int)": "the run counter before reset(): "
+    _FF + "129: self._flagged_run = np.zeros( 1, int)": "the run counter before reset(): "
         "_outliers replaces one of another shape by zeros, and a batch of one starts from "
         "the same zero",
-    _AD + '244: nis = np.einsum("bi,bi->b", e, x[..., -1])': "the solve's last axis has "
+    _FF + '143: nis = np.einsum("bi,bi->b", e, x[..., -1])': "the solve's last axis has "
         "length 1: index -1 is index 0",
-    _AD + "245: dof = np.maximum(valid.sum(-1), 0)": "an episode with no component present "
+    _FF + "144: dof = np.maximum(valid.sum(-1), 0)": "an episode with no component present "
         "has e = 0 and NIS 0, which exceeds neither the 1-dof quantile nor the 0-dof one "
         "(NaN, without a warning): not flagged either way",
-    _AD + '293: return frozenset({"selection-H"} ^ ({"unit-selection-H", "axes"}':
+    _FF + '192: return frozenset({"selection-H"} ^ ({"unit-selection-H", "axes"}':
         "the two sets are disjoint: their symmetric difference is their union",
 })
-# adaptation.py's last five survivors ("399: ... a < k1", "410: ... d < c1", "423: ... w
-# != 0.0", "487: ... w != 0.0", "539: ... w_obs != 0.0") differed from the code only where
-# k1 (c1) was infinite, which made the weights NaN: refused at construction since.
+# adaptation.py's last five survivors, now robust_adaptive.py's ("21: ... a < k1", "32: ...
+# d < c1", "45: ... w != 0.0", "109: ... w != 0.0", "161: ... w_obs != 0.0") differed from
+# the code only where k1 (c1) was infinite, which made the weights NaN: refused at
+# construction since.
 _FINITE = ("the thresholds k1 and c1 are finite (an infinite one is refused at "
            "construction: it made the weights NaN): at a = k1 (d = c1) the middle branch "
            "is 0 exactly, and the weights are never NaN, so w != 0 is w > 0 (never negative)")
-EQUIVALENT.update({_AD + key: _FINITE for key in (
-    "399: return np.where(a <= k0, 1.0, np.where(a < k1, middle, 0.0))",
-    "410: alpha = np.where(d <= c0, 1.0, np.where(d < c1, middle, 0.0))",
-    "423: d = 1.0 / np.sqrt(np.where(w != 0.0, w, 1.0))",
-    "487: kept = ctx.valid & (w != 0.0)       # a rejected outlier says nothing of the state",
-    "539: measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] & (w_obs != 0.0)")})
+EQUIVALENT.update({_RA + key: _FINITE for key in (
+    "21: return np.where(a <= k0, 1.0, np.where(a < k1, middle, 0.0))",
+    "32: alpha = np.where(d <= c0, 1.0, np.where(d < c1, middle, 0.0))",
+    "45: d = 1.0 / np.sqrt(np.where(w != 0.0, w, 1.0))",
+    "109: kept = ctx.valid & (w != 0.0)       # a rejected outlier says nothing of the state",
+    "161: measured = ctx.valid & np.any(U != 0.0, -1) & acting[:, None] & (w_obs != 0.0)")})
 _ANNOTATION = ("an annotation: under `from __future__ import annotations` it is a string, "
                "never evaluated")
 EQUIVALENT_PATTERNS: list[tuple[str, str]] = [
@@ -382,7 +393,7 @@ EQUIVALENT_PATTERNS: list[tuple[str, str]] = [
      r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) (np\.ndarray|None)", _ANNOTATION),
     (r"^estimators/filters\.py:(159|273): .*(PolicyTuning|np\.ndarray) "
      r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) None( = None|,)", _ANNOTATION),
-    (r"^estimators/adaptation\.py:(166|184|218): .*(float|np\.ndarray) "
+    (r"^estimators/fading_factors\.py:(65|83|117): .*(float|np\.ndarray) "
      r"(\+|-|\*|/|//|%|\*\*|<<|>>|&|\^) (np\.ndarray|None)",
      _ANNOTATION),
 ]

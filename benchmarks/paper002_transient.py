@@ -25,8 +25,9 @@ from dataclasses import replace
 import numpy as np
 
 from aligngym.estimators.alignment import run_alignment
-from aligngym.estimators.euler_large import PAPER002, C_p_n, EulerLargeMisalignmentModel, \
-    stack_integrals
+from aligngym.estimators.euler_integrals import stack_integrals
+from aligngym.estimators.euler_kinematics import C_p_n
+from aligngym.estimators.euler_large import PAPER002, EulerLargeMisalignmentModel
 from aligngym.estimators.catalogue import make_filter
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import arcmin, deg, deg_per_h

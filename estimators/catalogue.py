@@ -7,12 +7,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from aligngym.estimators.adaptation import (AdaptationPolicy, ImprovedMultipleFadingFactors,
-                                            MeasurementAxisFading, MeasurementFadingFactor,
-                                            MultipleFadingFactors, NoAdaptation,
-                                            RobustAdaptive, SelectiveWeights,
-                                            SingleFadingFactor)
+from aligngym.estimators.adaptation import AdaptationPolicy, NoAdaptation
+from aligngym.estimators.fading_factors import (ImprovedMultipleFadingFactors,
+                                                MeasurementAxisFading, MeasurementFadingFactor,
+                                                MultipleFadingFactors, SingleFadingFactor)
 from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.robust_adaptive import RobustAdaptive, SelectiveWeights
 from aligngym.estimators.sage_husa import SageHusaNoise
 from aligngym.estimators.rules import (CubatureRule, GaussHermiteRule, IntegrationRule,
                                        LinearizationRule, ReducedGaussHermiteRule,

@@ -1,6 +1,6 @@
 """Paper 002's Euler-error process map compiled with Numba: one explicit-midpoint step
-(``euler_large.midpoint_step``) of every integration point of every episode in one loop,
-the arithmetic of ``euler_large._dynamics`` written per point in the same order: the
+(``euler_kinematics.midpoint_step``) of every integration point of every episode in one loop,
+the arithmetic of ``euler_kinematics._dynamics`` written per point in the same order: the
 same numbers to the bit where NumPy's float64 sine and cosine are the C library's (x86-64
 without AVX-512, as on the reference machine), within an ulp of them where NumPy has its
 own (AVX-512); a test. A module of its own so that importing the estimators does not
@@ -11,7 +11,7 @@ from numba import njit
 
 @njit(cache=True)
 def _rates(x0, x1, x2, x5, x6, x7, x8, x9, C, f, w):
-    """x_dot[0:5] of ALGORITHMS (3.5) at one point (``euler_large._dynamics``)."""
+    """x_dot[0:5] of ALGORITHMS (3.5) at one point (``euler_kinematics._dynamics``)."""
     sE, cE = np.sin(x0), np.cos(x0)
     sN, cN = np.sin(x1), np.cos(x1)
     sU, cU = np.sin(x2), np.cos(x2)

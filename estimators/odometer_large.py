@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.euler_large import C_p_n, reset_jacobian
+from aligngym.estimators.euler_kinematics import C_p_n, reset_jacobian
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
                                        per_member)
 from aligngym.estimators.strapdown import AidedInsInputs

@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from aligngym.estimators.adaptation import (AdaptationContext, ImprovedMultipleFadingFactors,
-                                   MultipleFadingFactors, NoAdaptation, SingleFadingFactor)
+from aligngym.estimators.adaptation import AdaptationContext, NoAdaptation
+from aligngym.estimators.fading_factors import (ImprovedMultipleFadingFactors,
+                                                MultipleFadingFactors, SingleFadingFactor)
 from aligngym.models.attitude import rot_z
 
 
@@ -147,7 +148,7 @@ def test_measurement_fading_factors_oracles():
     """ALGORITHMS 2.10-2.11: consistent innovations leave R alone; an axis whose
     innovation variance exceeds H J H^T by kappa^2 R (along E, N, U) gets R scaled by
     kappa^2 along that axis only; P_pred is never faded."""
-    from aligngym.estimators.adaptation import MeasurementAxisFading, MeasurementFadingFactor
+    from aligngym.estimators.fading_factors import MeasurementAxisFading, MeasurementFadingFactor
 
     rng = np.random.default_rng(7)
     n, m, kappa = 6, 3, 2.0

@@ -1,5 +1,6 @@
-"""Paper 001's robust-adaptive and selective-weight policies, and the fading-factor
-machinery they share the module with, against values computed by hand from ALGORITHMS
+"""Paper 001's robust-adaptive and selective-weight policies (estimators/robust_adaptive.py),
+and the fading-factor machinery (estimators/fading_factors.py), against values computed
+by hand from ALGORITHMS
 section 5 ((5.3)-(5.9)), 003 eq. (50) and the chi-square quantiles: IGG-III weights and
 the adaptive factor in each branch and at the thresholds, the equivalent noise, whole
 ``adapt`` calls on hand-built batches, the rejection streak, argument checks."""
@@ -8,10 +9,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from aligngym.estimators.adaptation import (
-    AdaptationContext, MeasurementFadingFactor, MultipleFadingFactors, NoAdaptation,
-    RobustAdaptive, SelectiveWeights, SingleFadingFactor, adaptive_factor,
-    equivalent_noise, igg3_weights)
+from aligngym.estimators.adaptation import AdaptationContext, NoAdaptation
+from aligngym.estimators.fading_factors import (MeasurementFadingFactor, MultipleFadingFactors,
+                                                SingleFadingFactor)
+from aligngym.estimators.robust_adaptive import (RobustAdaptive, SelectiveWeights,
+                                                 adaptive_factor, equivalent_noise,
+                                                 igg3_weights)
 
 
 def context(innovation, S, R, PhiPPhi, Q, H, valid=None, motion=None, directions=None,

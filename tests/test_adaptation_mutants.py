@@ -13,10 +13,12 @@ import numpy as np
 import pytest
 from scipy.special import gammaincinv
 
-from aligngym.estimators.adaptation import (
-    AdaptationContext, AdaptationPolicy, ImprovedMultipleFadingFactors,
-    MeasurementAxisFading, MeasurementFadingFactor, MultipleFadingFactors, NoAdaptation,
-    PolicyTuning, RobustAdaptive, SelectiveWeights, SingleFadingFactor, adaptive_factor)
+from aligngym.estimators.adaptation import (AdaptationContext, AdaptationPolicy, NoAdaptation,
+                                            PolicyTuning)
+from aligngym.estimators.fading_factors import (
+    ImprovedMultipleFadingFactors, MeasurementAxisFading, MeasurementFadingFactor,
+    MultipleFadingFactors, SingleFadingFactor)
+from aligngym.estimators.robust_adaptive import RobustAdaptive, SelectiveWeights, adaptive_factor
 
 
 def context(e, PhiPPhi, Q, H, R, S=None, valid=None, **kw):

@@ -399,7 +399,7 @@ def test_an_adapted_prediction_nan_or_beyond_repair_is_flagged(monkeypatch):
 # --- a diverged episode's record, three components with one missing ---------------------
 
 def test_filter_needs_is_the_union_when_rule_and_policy_need_the_same():
-    from aligngym.estimators.adaptation import MeasurementAxisFading
+    from aligngym.estimators.fading_factors import MeasurementAxisFading
     from aligngym.estimators.catalogue import FILTERS, filter_needs, register_filter
     from aligngym.estimators.rules import CubatureRule
 

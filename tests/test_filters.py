@@ -202,7 +202,7 @@ def test_the_level_and_order_ranges(name, ok):
 
 def test_filter_needs_joins_the_rule_and_the_policy():
     from aligngym.estimators.catalogue import filter_needs, register_filter
-    from aligngym.estimators.adaptation import MeasurementAxisFading
+    from aligngym.estimators.fading_factors import MeasurementAxisFading
     from aligngym.estimators.rules import ReducedGaussHermiteRule
     register_filter("test-both-needs", lambda: ReducedGaussHermiteRule(3),
                     MeasurementAxisFading, fading=True)
@@ -230,7 +230,8 @@ def test_register_filter_refuses_a_built_in_name(name):
 
 def test_register_filter_checks_its_factories_and_passes_rho_to_a_fading_one():
     from aligngym.estimators.catalogue import register_filter
-    from aligngym.estimators.adaptation import NoAdaptation, SingleFadingFactor
+    from aligngym.estimators.adaptation import NoAdaptation
+    from aligngym.estimators.fading_factors import SingleFadingFactor
     from aligngym.estimators.rules import CubatureRule
     with pytest.raises(TypeError, match="must be factories"):
         register_filter("t-a", CubatureRule(), NoAdaptation)

@@ -30,7 +30,7 @@ velocity rows.
 import numpy as np
 import pytest
 
-from aligngym.estimators import euler_large as el
+from aligngym.estimators import euler_kinematics as ek
 from aligngym.estimators import rotation_vector as rv
 from aligngym.estimators.inertial_fine import (PHI as PHI_I, V as V_I, FineInputs, FineTuning,
                                       InertialFineModel, SwayAwareInertialModel,
@@ -55,8 +55,8 @@ F_B = C_BN.T @ np.array([0.0, 0.0, G]) + NABLA                 # f~ of the still
 ALPHA_T = np.array([0.5, -0.7, 58.5]) * deg                    # the INS's true Euler error
 D_LEVEL = np.array([1.0, -1.5]) * deg                          # estimate minus truth, level
 ALPHA_HAT = np.array([ALPHA_T[0] + D_LEVEL[0], ALPHA_T[1] + D_LEVEL[1], 30.0 * deg])
-C_BP = el.C_p_n(ALPHA_T).T @ C_BN              # open-loop INS attitude (error ALPHA_T)
-C_BP_FED = el.C_p_n(ALPHA_HAT) @ C_BP          # the INS corrected by the estimate (closed
+C_BP = ek.C_p_n(ALPHA_T).T @ C_BN              # open-loop INS attitude (error ALPHA_T)
+C_BP_FED = ek.C_p_n(ALPHA_HAT) @ C_BP          # the INS corrected by the estimate (closed
 #                                                loop: state 0, residual level ~ D_LEVEL)
 FALSE_SIZE = G * np.linalg.norm(D_LEVEL)       # 0.308 m/s^2/rad
 ZERO = 1e-6                                    # m/s^2/rad
@@ -77,30 +77,30 @@ def left_derivative(fun, C, axis=rot_z, h=1e-6):
 # --- 002: the positive control ------------------------------------------------------------
 
 def test_paper002_corrected_velocity_rows_have_no_heading_column():
-    """estimators/euler_large.py (ALGORITHMS 3.5): at alpha^ = (1.5, -2.2, 30) deg (truth
+    """estimators/euler_kinematics.py (ALGORITHMS 3.5): at alpha^ = (1.5, -2.2, 30) deg (truth
     (0.5, -0.7, 58.5)) d(dv_dot_EN)/d alpha_U is 0 in the analytic Jacobian and in
     central differences of the dynamics, against level columns of ~g; the old form
     [(I - C_p^n) f^p + C_p^n C_b^p nabla]_EN, computed here, gives the false column
     (-0.276, 0.137) m/s^2/rad = g |d_level|, and ~0 on the truth."""
     f_p = C_BP @ F_B
-    x = el.state_vector(ALPHA_HAT, np.zeros(2), NABLA[:2], EPS)
-    A = el.continuous_jacobian(x, C_BP, f_p, OMEGA)
-    np.testing.assert_allclose(A[el.DV, 2], 0.0, atol=1e-12)
+    x = ek.state_vector(ALPHA_HAT, np.zeros(2), NABLA[:2], EPS)
+    A = ek.continuous_jacobian(x, C_BP, f_p, OMEGA)
+    np.testing.assert_allclose(A[ek.DV, 2], 0.0, atol=1e-12)
     step = np.zeros(10)
     step[2] = 1e-6
-    fd = (el.continuous_dynamics(x + step, C_BP, f_p, OMEGA)
-          - el.continuous_dynamics(x - step, C_BP, f_p, OMEGA))[el.DV] / 2e-6
+    fd = (ek.continuous_dynamics(x + step, C_BP, f_p, OMEGA)
+          - ek.continuous_dynamics(x - step, C_BP, f_p, OMEGA))[ek.DV] / 2e-6
     np.testing.assert_allclose(fd, 0.0, atol=ZERO)
-    assert np.all(np.linalg.norm(A[el.DV, 0:2], axis=0) > 0.99 * G)
+    assert np.all(np.linalg.norm(A[ek.DV, 0:2], axis=0) > 0.99 * G)
 
     def old(alpha, nabla_xy):
-        C = el.C_p_n(alpha)
+        C = ek.C_p_n(alpha)
         return ((np.eye(3) - C) @ f_p + C @ C_BP @ np.r_[nabla_xy, 0.0])[:2]
 
     e = np.array([0.0, 0.0, 1e-6])
     old_hat = (old(ALPHA_HAT + e, NABLA[:2]) - old(ALPHA_HAT - e, NABLA[:2])) / 2e-6
     np.testing.assert_allclose(     # nabla_z is not a 002 state
-        old_hat, false_column(el.C_p_n(ALPHA_HAT), C_BP, np.r_[NABLA[:2], 0.0])[:2],
+        old_hat, false_column(ek.C_p_n(ALPHA_HAT), C_BP, np.r_[NABLA[:2], 0.0])[:2],
         atol=ZERO)
     assert abs(np.linalg.norm(old_hat) / FALSE_SIZE - 1) < 0.05
     old_true = (old(ALPHA_T + e, NABLA[:2]) - old(ALPHA_T - e, NABLA[:2])) / 2e-6
@@ -179,7 +179,7 @@ def test_paper004_transformed_models_have_no_heading_sensitivity():
     components phi_U is not a pure heading coordinate; it equals the derivative of the
     exact still-base rate (exp(-[phi x]) - I) g e3 + C_b^p nabla."""
     rate = _dv_rate(rv.st_derivative, _quantities(C_BP))
-    C_hat = el.C_p_n(ALPHA_HAT)
+    C_hat = ek.C_p_n(ALPHA_HAT)
     np.testing.assert_allclose(left_derivative(rate, C_hat), 0.0, atol=ZERO)
     for axis in (rot_x, rot_y):
         assert np.linalg.norm(left_derivative(rate, C_hat, axis)) > 0.99 * G
@@ -217,15 +217,15 @@ def test_paper004_classic_model_documents_a_false_heading_sensitivity(sway):
     a_n = np.array([0.2, -0.15, 0.05]) if sway else np.zeros(3)
     f_b = F_B + C_BN.T @ a_n
     rate = _dv_rate(rv.classic_derivative, _quantities(C_BP, f_b))
-    np.testing.assert_allclose(left_derivative(rate, el.C_p_n(ALPHA_T)),
+    np.testing.assert_allclose(left_derivative(rate, ek.C_p_n(ALPHA_T)),
                                -np.cross(E3, a_n), atol=ZERO)
-    C = el.C_p_n(ALPHA_HAT) @ el.C_p_n(ALPHA_T).T             # the estimate's view of n
-    expected = -np.cross(E3, el.C_p_n(ALPHA_HAT) @ C_BP @ (f_b - NABLA))
+    C = ek.C_p_n(ALPHA_HAT) @ ek.C_p_n(ALPHA_T).T             # the estimate's view of n
+    expected = -np.cross(E3, ek.C_p_n(ALPHA_HAT) @ C_BP @ (f_b - NABLA))
     false = -G * np.cross(E3, C @ E3)
     np.testing.assert_allclose(expected, -np.cross(E3, C @ a_n) + false, atol=1e-12)
     assert abs(np.linalg.norm(false) / FALSE_SIZE - 1) < 0.05
     fed = _dv_rate(rv.classic_derivative, _quantities(C_BP_FED, f_b))
-    for column in (left_derivative(rate, el.C_p_n(ALPHA_HAT)),
+    for column in (left_derivative(rate, ek.C_p_n(ALPHA_HAT)),
                    left_derivative(fed, np.eye(3))):
         np.testing.assert_allclose(column, expected, atol=ZERO)
 
@@ -316,7 +316,7 @@ def test_paper000_standstill_model_documents_a_false_heading_sensitivity():
     assert np.abs(col_true).max() < 1e-4
     hat = x.copy()
     hat[0:3] = ALPHA_HAT
-    cases = ((_odometer_rate(C_BP, hat), ALPHA_HAT[2], el.C_p_n(ALPHA_HAT), C_BP),
+    cases = ((_odometer_rate(C_BP, hat), ALPHA_HAT[2], ek.C_p_n(ALPHA_HAT), C_BP),
              (_odometer_rate(C_BP_FED, x), 0.0, np.eye(3), C_BP_FED))
     for rate, phi_U, C_hat, C_b_ins in cases:
         col = (rate(phi_U + h) - rate(phi_U - h)) / (2 * h)

@@ -109,7 +109,7 @@ def _model_on_truth(ring, start: float, seconds: int, phi0, mounting: bool = Tru
     the Euler error phi0 (rad); the true mounting given as nominal (or the identity,
     nominal_mount False: the mounting states carry it); constant drift eps (rad/s) and
     bias nabla (m/s^2) added to the increments."""
-    from aligngym.estimators.euler_large import C_p_n
+    from aligngym.estimators.euler_kinematics import C_p_n
     from aligngym.estimators.odometer_large import (OdometerInputs, OdometerLargeHeadingModel,
                                            OdometerTuning)
     from aligngym.models.attitude import dcm_to_quat
@@ -154,7 +154,7 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
     heading_deg, nominal, sensor_errors = CASES[case]
     eps = np.array([1e-5, -0.7e-5, 0.5e-5]) if sensor_errors else np.zeros(3)
     nabla = np.array([1e-2, -0.5e-2, 0.8e-2]) if sensor_errors else np.zeros(3)
-    from aligngym.estimators.euler_large import true_state
+    from aligngym.estimators.euler_kinematics import true_state
     from aligngym.scenarios.experiments.paper000 import _rear_path
     model, i0, S = _model_on_truth(ring, 40.0, 15, [0.0, 0.0, heading_deg * deg],
                                    nominal_mount=nominal, eps=eps, nabla=nabla)
@@ -194,7 +194,8 @@ def test_large_heading_model_follows_the_strapdown_and_the_odometer(ring, case):
 def test_strong_tracking_factor_is_one_when_innovations_match_their_prediction():
     """ALGORITHMS 4.3's oracle for the derivative-free form: V_k = P_zz0, beta = 1 ->
     lambda = 1; twice the predicted variance -> lambda > 1."""
-    from aligngym.estimators.adaptation import AdaptationContext, SingleFadingFactor
+    from aligngym.estimators.adaptation import AdaptationContext
+    from aligngym.estimators.fading_factors import SingleFadingFactor
     P = np.array([[[2.0, 0.3], [0.3, 1.0]]])
     Q = np.array([[[0.1, 0.0], [0.0, 0.2]]])
     H = np.array([[[1.0, 0.5]]])
@@ -243,7 +244,7 @@ def test_strong_tracking_over_a_settling_sequence_waits_for_the_filter_to_settle
     statistic's ratio 20-50 at k = 1-3, mean lambda 10-25); started after a warm-up,
     V_k holds only innovations predicted by a settled P: the ratio is near 1 (the slow
     drift of S keeps it a little above), and lambda = 1 throughout the warm-up."""
-    from aligngym.estimators.adaptation import SingleFadingFactor
+    from aligngym.estimators.fading_factors import SingleFadingFactor
     lam, ratio = _settling_factors(SingleFadingFactor())
     assert ratio[1:4].min() > 20.0 and lam[:, 1:4].mean() > 10.0   # the start-up defect
     lam, ratio = _settling_factors(SingleFadingFactor(warm_up=10.0))
@@ -257,7 +258,7 @@ def test_strong_tracking_over_a_settling_sequence_waits_for_the_filter_to_settle
 def test_strong_tracking_does_not_fade_through_a_still():
     """in_motion_only: an episode standing still keeps lambda = 1 and its V_k (which
     restarts from its next moving epoch), the moving ones fade as before."""
-    from aligngym.estimators.adaptation import SingleFadingFactor
+    from aligngym.estimators.fading_factors import SingleFadingFactor
     moving = np.arange(4000) % 2 == 0
     lam, _ = _settling_factors(SingleFadingFactor(in_motion_only=True), motion=moving)
     free, _ = _settling_factors(SingleFadingFactor())

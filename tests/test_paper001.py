@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aligngym.estimators.adaptation import (AdaptationContext, RobustAdaptive, SelectiveWeights,
-                                   adaptive_factor, igg3_weights)
+from aligngym.estimators.adaptation import AdaptationContext
+from aligngym.estimators.robust_adaptive import (RobustAdaptive, SelectiveWeights,
+                                                 adaptive_factor, igg3_weights)
 from aligngym.estimators.filters import GaussianFilter
 from aligngym.estimators.loose_gps import (HEADING, GpsInsInputs, LooselyCoupledModel, LooseTuning,
                                   heading_cw, heading_row)

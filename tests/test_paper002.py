@@ -12,8 +12,9 @@ import pytest
 from scipy.stats import chi2
 
 from aligngym.estimators.alignment import run_alignment
-from aligngym.estimators.euler_large import (PAPER002, C_p_n, EulerLargeMisalignmentModel,
-                                    SmallAngleModel, stack_integrals)
+from aligngym.estimators.euler_integrals import stack_integrals
+from aligngym.estimators.euler_kinematics import C_p_n
+from aligngym.estimators.euler_large import PAPER002, EulerLargeMisalignmentModel, SmallAngleModel
 from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.metrics import static_alignment_floor
 from aligngym.models.earth import OMEGA_IE

@@ -263,7 +263,8 @@ def test_the_bands_are_scipy_stats_numbers_without_importing_it():
     np.testing.assert_array_equal(chi2_quantile(0.999, dofs), chi2.ppf(0.999, dofs))
     code = ("import sys, numpy as np\n"
             "from aligngym.scenarios.figure_statistics import mean_nees_band, median_nees_band\n"
-            "from aligngym.estimators.adaptation import AdaptationContext, SingleFadingFactor\n"
+            "from aligngym.estimators.adaptation import AdaptationContext\n"
+            "from aligngym.estimators.fading_factors import SingleFadingFactor\n"
             "mean_nees_band(3, 10); median_nees_band(3, 10)\n"
             "p = SingleFadingFactor(outlier_probability=0.999); p.reset(1)\n"
             "ctx = AdaptationContext(innovation=np.ones((1, 2)), valid=np.ones((1, 2), bool),"

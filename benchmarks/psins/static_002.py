@@ -81,8 +81,9 @@ def main(argv=None) -> int:
         from scipy.io import loadmat, savemat
 
         from aligngym.estimators.alignment import run_alignment
-        from aligngym.estimators.euler_large import (C_p_n, EulerLargeMisalignmentModel,
-                                                     stack_integrals)
+        from aligngym.estimators.euler_integrals import stack_integrals
+        from aligngym.estimators.euler_kinematics import C_p_n
+        from aligngym.estimators.euler_large import EulerLargeMisalignmentModel
         from aligngym.estimators.catalogue import make_filter
         from aligngym.estimators.metrics import misalignment, static_alignment_floor
         from aligngym.models.attitude import euler_to_dcm

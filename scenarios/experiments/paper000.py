@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from aligngym.estimators.euler_large import C_p_n, true_state
+from aligngym.estimators.euler_kinematics import C_p_n, true_state
 from aligngym.estimators.inertial_frame import odometer_aided_alignment, static_coarse_alignment
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.metrics import euler_error, status_fractions

@@ -17,9 +17,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from aligngym.estimators.euler_large import (LAYOUT, PAPER002, C_p_n, EulerLargeMisalignmentModel,
-                                    Paper002Tuning, StaticBaseIntegrals,
-                                    stack_integrals, static_base_integrals, true_state)
+from aligngym.estimators.euler_integrals import (StaticBaseIntegrals, stack_integrals,
+                                                 static_base_integrals)
+from aligngym.estimators.euler_kinematics import C_p_n, true_state
+from aligngym.estimators.euler_large import (LAYOUT, PAPER002, EulerLargeMisalignmentModel,
+                                             Paper002Tuning)
 from aligngym.estimators.catalogue import make_filter
 from aligngym.estimators.alignment import FineResult
 from aligngym.estimators.model import wrap_angle
