@@ -246,9 +246,9 @@ EQUIVALENT.update({
 })
 _STACK = "C_p_n of a (B, K, 3) state is a (B, K, 3, 3) stack: axis 2 is axis -2"
 EQUIVALENT.update({
-    "scenarios/experiments/paper002.py:193: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, +2) @ "
+    "scenarios/experiments/paper002.py:145: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, +2) @ "
     "result.C_s_n": _STACK,
-    "scenarios/experiments/paper002.py:193: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, 2) @ "
+    "scenarios/experiments/paper002.py:145: C_b_p = np.swapaxes(C_p_n(alpha_hat), -1, 2) @ "
     "result.C_s_n": _STACK,
 })
 _FF = "estimators/fading_factors.py:"

@@ -13,7 +13,7 @@ import pytest
 
 from aligngym.scenarios import registry
 from aligngym.scenarios.campaign import Experiment
-from aligngym.scenarios.experiments import experiment_class
+from aligngym.scenarios.experiments import experiment_class, paper003
 
 from dvl_experiment import DvlAidedExperiment
 
@@ -62,7 +62,7 @@ def test_the_check_finds_forwards():
 
         def summary(self, result):
             """The summary."""
-            return summarise(result)
+            return paper003.format_tables(result)
 
         def start_errors(self, episodes):
             return paper003.coarse_starts(episodes)
@@ -71,7 +71,7 @@ def test_the_check_finds_forwards():
             return self.state_count
 
         def model(self, episodes, start_error, variant=""):
-            return build(episodes, start_error, variant=variant, step=1.0)
+            return paper003.start_attitude(episodes, start_error, variant=variant, step=1.0)
 
     assert forwards(Forwarding) == ["episode_class", "summary", "start_errors", "nees_dof"]
 
