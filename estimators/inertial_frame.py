@@ -17,7 +17,7 @@ import numpy as np
 from aligngym.estimators.strapdown import body_rate_at, compensate
 from aligngym.models.attitude import (cross, quat_cumprod, quat_rotate, quat_to_dcm, rotvec_to_quat)
 from aligngym.models.earth import OMEGA_IE, normal_gravity
-from aligngym.models.world import gimbal_C_s_b, gimbal_rate_in_sensor  # noqa: F401  (re-exported)
+from aligngym.models.gimbal import gimbal_C_s_b, gimbal_rate_in_sensor  # noqa: F401  (re-exported)
 
 
 # --- earth rotation in the inertial frame ------------------------------------------------

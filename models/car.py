@@ -32,8 +32,10 @@ from aligngym.models.car_params import WHEEL_CENTRE_Z, CarParams
 from aligngym.models.car_scenery import CAR_MATERIALS, car_body, rim, track_scenery
 from aligngym.models.car_track import (G_LATERAL_MAX, RADIUS_MAX, ROUGH_RADIUS_MAX, DriveProfile,
                                        PurePursuit, Track, figure8_track, ring_track)
+from aligngym.models.discrete_run import DiscreteRun
+from aligngym.models.gimbal import GimbalRates
 from aligngym.models.scene import geom
-from aligngym.models.world import IMU_SENSORS_MJCF, DiscreteRun, GimbalRates, skip_sensors
+from aligngym.models.world import IMU_SENSORS_MJCF, skip_sensors
 
 def car_mjcf(p: CarParams, roughness_seed: int = 0, extent: float = 600.0,
              track: Track | None = None, dressed: bool = True) -> tuple[str, dict]:
@@ -159,7 +161,7 @@ class CarWorld:
     """The car and its driver in MuJoCo."""
 
     smooth_truth = False
-    """The truth is MuJoCo's discrete motion itself (``models.world.discrete_imu``): wheel
+    """The truth is MuJoCo's discrete motion itself (``models.discrete_run.discrete_imu``): wheel
     contacts on a rough road change the rates within a step."""
 
     def __init__(self, params: CarParams, track: Track, profile: DriveProfile,
@@ -253,7 +255,7 @@ class VehicleMotion(GimbalRates):
     strapdown IMU."""
     gimbal_inner_rate: float = 0.0
     gimbal_stalls: tuple[tuple[float, float], ...] = ()
-    """Injected stalls (start s, duration s) of that gimbal (``models.world.stalled``)."""
+    """Injected stalls (start s, duration s) of that gimbal (``models.gimbal.stalled``)."""
 
     def make_track(self) -> Track:
         if self.track == "ring":

@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from aligngym.models.attitude import euler_to_quat
+from aligngym.models.gimbal import GimbalRates
 from aligngym.models.units import deg
 from aligngym.models.scene import INSTRUMENTS, geom, imu_axes
-from aligngym.models.world import IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld, WorldSamples
+from aligngym.models.world import IMU_SENSORS_MJCF, PrescribedWorld, WorldSamples
 
 
 @dataclass(frozen=True)

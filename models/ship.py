@@ -15,11 +15,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from aligngym.models.attitude import euler_to_quat
+from aligngym.models.gimbal import GimbalRates, smoothstep, stalled
 from aligngym.models.indexer import IndexerSpec, indexer_run
 from aligngym.models.units import deg
 from aligngym.models.scene import INSTRUMENTS, VISUAL, fmt, imu_axes, mesh_asset, torus_mesh
-from aligngym.models.world import (ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, GimbalRates, PrescribedWorld,
-                          smoothstep, stalled)
+from aligngym.models.world import ANTENNA_SENSORS_MJCF, IMU_SENSORS_MJCF, PrescribedWorld
 
 
 @dataclass(frozen=True)
@@ -31,13 +31,13 @@ class ShipSwayMotion(GimbalRates):
     displacement ``k(t) A sin(2 pi t / T + phase)``. k(t) is the sway scale (the sea state
     relative to the amplitudes given): sway_scale, changed within the episode by
     sway_scale_changes ((time s, ramp s > 0, value), a [[schedule]]'s), each reached by a
-    septic smoothstep over its ramp (``models.world.smoothstep``), so that angles,
+    septic smoothstep over its ramp (``models.gimbal.smoothstep``), so that angles,
     positions and their first three derivatives stay continuous.
     indexer: a single-axis azimuth indexer (``models.indexer``) on the outer gimbal axis
     instead of the constant-rate double-axis rotation (both rates 0 then);
     antenna_b: the GNSS antenna from the sway centre (R, F, U), m (None: at the IMU);
     hull_size: the hull's beam, length and depth, m (visual only); gimbal_stalls:
-    injected stalls (start s, duration s) of the gimbal (``models.world.stalled``).
+    injected stalls (start s, duration s) of the gimbal (``models.gimbal.stalled``).
     """
 
     yaw_mean: float = 30 * deg

@@ -8,7 +8,7 @@ radiation damping, weak surge/sway/yaw restoring (mooring or dynamic positioning
 heading autopilot. The stiffnesses come from the natural periods, so the hull's response
 has the paper's character (periods 5-8 s, degrees of roll and pitch, decimetres of
 heave) with the randomness of a real sea. The rotary IMU sits on the double-axis gimbal
-at the lever arm; MuJoCo's discrete steps are recorded and ``models.world.SmoothRun``
+at the lever arm; MuJoCo's discrete steps are recorded and ``models.discrete_run.SmoothRun``
 makes the truth and the increments from them.
 """
 from __future__ import annotations
@@ -19,10 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aligngym.models.discrete_run import DiscreteRun
+from aligngym.models.gimbal import GimbalRates, stalled
 from aligngym.models.indexer import IndexerMotion, IndexerSpec
 from aligngym.models.ship import HULL_SIZE_RANGE, REFERENCE_HULL, ship_mjcf
 from aligngym.models.units import deg
-from aligngym.models.world import DiscreteRun, GimbalRates, skip_sensors, stalled
+from aligngym.models.world import skip_sensors
 
 RHO_G = 1025.0 * 9.81
 WAVE_TIMESTEP = 0.002
@@ -43,7 +45,7 @@ class WaveShipMotion(GimbalRates):
     floating hull's model (the rates 0 then); antenna_b: the GNSS antenna from the hull
     origin (R, F, U), m (None: at the IMU); hull_size: beam, length, depth, m (the mass
     properties scale with it, ``models.ship.hull_mass_properties``); gimbal_stalls:
-    injected stalls (start s, duration s) of the gimbal (``models.world.stalled``).
+    injected stalls (start s, duration s) of the gimbal (``models.gimbal.stalled``).
     """
 
     significant_wave_height: float = 1.5
@@ -180,7 +182,7 @@ class WaveShipWorld:
     """The 003 ship's MJCF (hull, gimbal, IMU) as a dynamic body in a random sea."""
 
     smooth_truth = True
-    """The truth is the smooth motion MuJoCo's steps sample (``models.world.SmoothRun``):
+    """The truth is the smooth motion MuJoCo's steps sample (``models.discrete_run.SmoothRun``):
     a hull turns smoothly, and its piecewise-constant rates would read as coning."""
 
     def __init__(self, motion: WaveShipMotion, rng: np.random.Generator,

@@ -200,7 +200,7 @@ def _fault_log(config: ScenarioConfig, imu_rows: list, sensor_rows: list
     """The record of every fault (None without any): the IMU faults' rows, the gimbal
     stalls (to the end of their catch-up), then the sensors' (GNSS outages and outliers
     at the stamp of the fix each is put on, odometer slips, DVL dropouts)."""
-    from aligngym.models.world import STALL_CATCH_UP
+    from aligngym.models.gimbal import STALL_CATCH_UP
     rows = list(imu_rows)
     rows += [("gimbal_stall", start, start + (1.0 + STALL_CATCH_UP) * duration)
              for start, duration in config.faults.gimbal_stalls]
@@ -221,7 +221,7 @@ def _imu_errors(config, rngs, dtheta, dv, ideal, gimbal_angles):
     realization = config.imu.draw(rngs["imu_realization"])
     rotation = None
     if config.imu_bias_frame == "hull":
-        from aligngym.models.world import gimbal_C_s_b
+        from aligngym.models.gimbal import gimbal_C_s_b
         mid = 0.5 * (gimbal_angles[:-1] + gimbal_angles[1:])
         rotation = np.swapaxes(gimbal_C_s_b(mid), -1, -2)
     dtheta, dv = apply_imu_errors(dtheta, dv, config.imu_interval, config.imu, realization,

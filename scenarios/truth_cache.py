@@ -54,8 +54,8 @@ def cache_directory() -> Path | None:
 
 SIMULATION_SOURCES = ("models", "sensors", "estimators", "scenarios/experiments",
                       "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py",
-                      "scenarios/config_keys.py", "scenarios/worlds.py",
-                      "scenarios/world_truth.py")
+                      "scenarios/config_keys.py", "scenarios/config_tables.py",
+                      "scenarios/worlds.py", "scenarios/world_truth.py")
 """The package's code that prepares an episode: any change to it is a new bank and new
 truth entries."""
 

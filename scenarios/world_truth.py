@@ -122,7 +122,7 @@ def dynamic_motion(config: Scenario, world) -> WorldTruth:
     by the odometer's mounting)."""
     from aligngym.models.attitude import euler_to_quat, quat_mul, quat_to_dcm
     from aligngym.models.truth import gravity_t, plane_truth
-    from aligngym.models.world import SmoothRun
+    from aligngym.models.discrete_run import SmoothRun
 
     motion = config.motion
     run = world.run(config.duration)

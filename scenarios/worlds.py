@@ -67,13 +67,13 @@ class World(ABC):
     [[schedule]] entry may change within the episode, e.g. the sea state).
 
     What a world of your own must give: a ``motion_type`` that is a frozen (hashable)
-    dataclass with the gimbal's fields (``models.world.GimbalRates``: its rates, stalls
+    dataclass with the gimbal's fields (``models.gimbal.GimbalRates``: its rates, stalls
     and ``has_gimbal``), in SI; a prescribed world's ``scene(motion)``, a
     ``models.world.PrescribedWorld`` whose MJCF has the body ``carrier``, the site ``imu``
     with ``IMU_SENSORS_MJCF`` and, for GNSS, an antenna site, and whose ``sample(t)`` gives
     the motion at every time (``StaticPlatformWorld`` samples once and repeats it: right
     for a still world only); a dynamic world's ``build`` an object whose ``run(duration)``
-    returns a ``models.world.DiscreteRun``. Its truth is cached under a kind that carries
+    returns a ``models.discrete_run.DiscreteRun``. Its truth is cached under a kind that carries
     a hash of its module's source (``cache_kind``)."""
 
     name: ClassVar[str]

@@ -8,7 +8,7 @@ sample's rate and specific force offset by these on every axis); ``saturation =
 ``gaps = [[start_s, duration_s], ...]`` (samples missing from the stream: their
 timestamps are absent, the others keep theirs); ``nans = [time_s, ...]`` (one sample of
 NaN on every axis); ``gimbal_stalls = [[start_s, duration_s], ...]`` (the gimbal stops,
-then catches up with its schedule, ``models.world.stalled``; the scenario's motion
+then catches up with its schedule, ``models.gimbal.stalled``; the scenario's motion
 carries them, and the encoders show them).
 """
 from __future__ import annotations
@@ -52,7 +52,7 @@ class ImuFaults:
             if any(d <= 0.0 for _, d in rows):
                 raise ValueError(f"faults.{name}: each duration must be > 0 s")
             object.__setattr__(self, name, rows)
-        from aligngym.models.world import STALL_CATCH_UP, STALL_RAMP
+        from aligngym.models.gimbal import STALL_CATCH_UP, STALL_RAMP
         stalls = sorted(self.gimbal_stalls)
         if any(d < STALL_RAMP for _, d in stalls):
             raise ValueError(f"faults.gimbal_stalls: each duration must be >= {STALL_RAMP:g} s "

@@ -34,7 +34,7 @@ from aligngym.estimators.inertial_frame import gimbal_rate_s
 from aligngym.estimators.model import Observation, StateLayout, Transition
 from aligngym.models.attitude import cross
 from aligngym.models.units import deg
-from aligngym.models.world import gimbal_C_s_b
+from aligngym.models.gimbal import gimbal_C_s_b
 from aligngym.scenarios.campaign import Experiment, simulate_screened
 from aligngym.scenarios.campaign.settings import MAX_RUN, POSITIVE, bounded, setting
 from aligngym.scenarios.campaign.requirements import SensorTable

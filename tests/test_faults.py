@@ -170,7 +170,7 @@ def test_a_stalled_gimbal_stops_then_catches_up():
     the motion is the nominal one again; rates and accelerations are the derivatives of
     the angles (finite differences), continuous through the stop and the catch-up."""
     from aligngym.models.ship import ShipSwayMotion
-    from aligngym.models.world import STALL_CATCH_UP, STALL_RAMP
+    from aligngym.models.gimbal import STALL_CATCH_UP, STALL_RAMP
     nominal = ShipSwayMotion()
     motion = ShipSwayMotion(gimbal_stalls=((100.0, 2.0),))
     t = np.arange(99.0, 100.0 + 2.0 * (1.0 + STALL_CATCH_UP) + 1.0, 1e-4)

@@ -14,7 +14,7 @@ import aligngym  # noqa: F401  (registers the env ids)
 from aligngym.models.attitude import euler_to_quat, quat_rotate
 from aligngym.models.earth import earth_rate_n, gravity_n
 from aligngym.models.platform import StaticPlatformWorld
-from aligngym.models.world import GimbalRates
+from aligngym.models.gimbal import GimbalRates
 from aligngym.scenarios import registry
 from aligngym.scenarios.cli import main
 from aligngym.scenarios.config import ConfigError, load_scenario

@@ -1,10 +1,10 @@
-"""The smooth truth of a floating hull (``models.world.SmoothRun``), checked on a known
+"""The smooth truth of a floating hull (``models.discrete_run.SmoothRun``), checked on a known
 analytic motion: MuJoCo's exact sensors on the prescribed ship."""
 import numpy as np
 
 from aligngym.models.attitude import quat_angle, quat_conj, quat_mul, quat_to_dcm, quat_to_rotvec
 from aligngym.models.ship import ShipSwayMotion, ShipWorld
-from aligngym.models.world import DiscreteRun, SmoothRun
+from aligngym.models.discrete_run import DiscreteRun, SmoothRun
 
 H = 0.002          # s, the physics step
 DURATION = 20.0    # s

@@ -7,7 +7,7 @@ from aligngym.models.attitude import quat_to_euler
 from aligngym.models.units import arcsec
 from aligngym.models.waves import (WaveShipMotion, WaveShipWorld, heave_response, jonswap_components,
                           sway_centre_velocity)
-from aligngym.models.world import SmoothRun
+from aligngym.models.discrete_run import SmoothRun
 from aligngym.scenarios.config import load_scenario
 from aligngym.scenarios.fidelity import fidelity_errors
 from aligngym.scenarios.simulate import simulate

@@ -162,7 +162,7 @@ def simulate_screened(config: ScenarioConfig, seed: int):
     if odometer is not None:
         forward = np.array([0.0, 1.0, 0.0])         # the body's forward axis (R, F, U)
         if config.motion.has_gimbal:                # in s: C_s_b^T e_F, mid-interval
-            from aligngym.models.world import gimbal_C_s_b
+            from aligngym.models.gimbal import gimbal_C_s_b
             enc = episode.gimbal_encoder
             forward = gimbal_C_s_b(0.5 * (enc[:-1] + enc[1:]))[:, 1, :]
         flags.append(screen_odometer(config.imu_interval, odometer.distance,

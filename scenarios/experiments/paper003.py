@@ -22,7 +22,7 @@ from aligngym.estimators.inertial_frame import (C_n_i, attitude_from_inertial, b
 from aligngym.estimators.metrics import misalignment, static_alignment_floor
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.units import arcmin, deg
-from aligngym.models.world import gimbal_C_s_b
+from aligngym.models.gimbal import gimbal_C_s_b
 from aligngym.scenarios import campaign
 from aligngym.scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
                                          TruthMap, fine_summary, simulate_screened)

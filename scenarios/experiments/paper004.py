@@ -38,7 +38,7 @@ from aligngym.estimators.rotation_vector import (EPS, LAYOUT, NABLA, IndexedGpsI
                                                  RotationVectorGnssModel, RotationVectorTuning)
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.units import deg, deg_per_h, mg
-from aligngym.models.world import gimbal_C_s_b
+from aligngym.models.gimbal import gimbal_C_s_b
 from aligngym.scenarios.atomic import save_figure
 from aligngym.scenarios.campaign import (CampaignResult, Experiment, GnssEpisode, TruthMap,
                                          setting, simulate_screened)
