@@ -47,11 +47,14 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None]] = {
     "estimators/filters.py": ("tests/test_filters.py tests/test_filter_guards.py "
                               "tests/test_linear_exactness.py tests/test_filter_mutants.py",
                               None),
-    "scenarios/experiments/paper000.py": ("tests/test_nees_maps.py", ("nees",)),
-    "scenarios/experiments/paper001.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
-    "scenarios/experiments/paper002.py": ("tests/test_nees_maps.py", ("nees",)),
-    "scenarios/experiments/paper003.py": ("tests/test_nees_maps.py", ("nees",)),
-    "scenarios/experiments/paper004.py": ("tests/test_nees_maps.py", ("nees", "state_errors")),
+    "scenarios/campaign/experiment.py": ("tests/test_nees_maps.py", ("nees", "nees_dof")),
+    "scenarios/experiments/paper000.py": ("tests/test_nees_maps.py", ("state_errors",)),
+    "scenarios/experiments/paper001.py": ("tests/test_nees_maps.py", ("state_errors",)),
+    "scenarios/experiments/paper002.py": ("tests/test_nees_maps.py", ("state_errors",)),
+    "scenarios/experiments/paper003.py": ("tests/test_nees_maps.py",
+                                          ("sensor_frame_errors", "hull_frame_floor",
+                                           "about_floor_errors", "truth_map")),
+    "scenarios/experiments/paper004.py": ("tests/test_nees_maps.py", ("state_errors",)),
     "estimators/rules.py": ("tests/test_rules.py tests/test_rules_definitions.py "
                             "tests/test_linear_exactness.py", None),
     "estimators/strapdown.py": ("tests/test_strapdown_units.py tests/test_strapdown.py -k "

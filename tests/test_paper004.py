@@ -11,7 +11,8 @@ import pytest
 from aligngym.models.units import deg
 from aligngym.scenarios.campaign import run_campaign
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.experiments.paper004 import Paper004Experiment, paper004_summary, run_metrics
+from aligngym.scenarios.analyses.paper004 import paper004_summary, run_metrics
+from aligngym.scenarios.experiments.paper004 import Paper004Experiment
 
 SHORT = {"fine_duration": 400.0, "rms_start": 300.0}
 
@@ -132,7 +133,7 @@ def test_swing_levels_and_cases_reach_the_scenario():
 def test_swing_levels_merge_into_one_json(campaign):
     """--swing all: each level's summary nests under its level, per filter."""
     from copy import deepcopy
-    from aligngym.scenarios.experiments.paper004 import merge_levels
+    from aligngym.scenarios.analyses.paper004 import merge_levels
     moderate = paper004_summary(campaign)
     severe = deepcopy(moderate)
     for per_level in severe["fine"].values():

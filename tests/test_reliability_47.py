@@ -74,7 +74,7 @@ def test_a_filter_nan_throughout_is_diverged_and_never_converged(nan_run):
 def test_paper_metrics_count_nan_as_outside(nan_run):
     """Paper 004's run metrics (its own convergence and 3-sigma fractions) on a run that
     is NaN throughout: never converged, never inside its 3 sigma, outside the 1-deg."""
-    from aligngym.scenarios.experiments import paper004
+    from aligngym.scenarios.analyses import paper004
     exp, episodes, _, bad = nan_run
 
     class Episode:

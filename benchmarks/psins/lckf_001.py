@@ -141,7 +141,7 @@ def psins_result(path: Path, episodes, b: int, exp) -> SimpleNamespace:
     heading sigma (K+1,) rad, 15-state NEES (K+1,) with PSINS's P mapped to our states."""
     from scipy.io import loadmat
     from aligngym.estimators.metrics import misalignment
-    from aligngym.scenarios.experiments.paper001 import navigation_errors
+    from aligngym.scenarios.analyses.paper001 import navigation_errors
 
     o = loadmat(str(path).replace(".mat", "_out.mat"))
     pos, vn, C, P_n = o["pos"], o["vn"], o["C"], o["P"]
@@ -204,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         from aligngym.scenarios.campaign.executors import prepare_all
         from aligngym.scenarios.campaign.runs import run_filter
         from aligngym.scenarios.experiments import experiment
-        from aligngym.scenarios.experiments.paper001 import navigation_errors
+        from aligngym.scenarios.analyses.paper001 import navigation_errors
 
         exp = experiment("paper001", fine_duration=args.fine_duration)
         t0 = time.time()
