@@ -11,8 +11,9 @@ from aligngym.estimators.metrics import static_alignment_floor
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import arcmin, deg, deg_per_h, ug
 from aligngym.scenarios.cli import main
-from aligngym.scenarios.experiments.paper003 import (Paper003Experiment, coarse_errors, prepare_episode,
-                                run_campaign, run_filter)
+from aligngym.scenarios.analyses.paper003 import coarse_errors
+from aligngym.scenarios.experiments.paper003 import (Paper003Experiment, prepare_episode,
+                                                     run_campaign, run_filter)
 from aligngym.sensors.imu import ImuSpec, TriadSpec
 
 CONSTANT_BIASES = ImuSpec(

@@ -153,7 +153,8 @@ def test_wave_measurement_sigma_covers_the_heave_peaks(floating):
 
 
 def test_paper003_pipeline_runs_on_the_wave_driven_ship():
-    from aligngym.scenarios.experiments.paper003 import Paper003Experiment, coarse_errors, run_campaign
+    from aligngym.scenarios.analyses.paper003 import coarse_errors
+    from aligngym.scenarios.experiments.paper003 import Paper003Experiment, run_campaign
     result = run_campaign(episodes=1, seed=0, filters=["kf"], progress=False, workers=1,
                           experiment=Paper003Experiment(scenario="ship-waves-rotary",
                                                         fine_duration=RUN - 120.0))

@@ -21,11 +21,12 @@ from aligngym.estimators.inertial_frame import (C_n_i, attitude_from_inertial, b
                                        coarse_alignment_ib0)
 from aligngym.estimators.metrics import misalignment, static_alignment_floor
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
-from aligngym.models.units import arcmin, deg
+from aligngym.models.units import deg
 from aligngym.models.gimbal import gimbal_C_s_b
 from aligngym.scenarios import campaign
-from aligngym.scenarios.campaign import (AXES, CampaignResult, Experiment, PreparedEpisode,
-                                         TruthMap, fine_summary, simulate_screened)
+from aligngym.scenarios.analyses.paper003 import coarse_summary, format_tables, signed_extreme
+from aligngym.scenarios.campaign import (CampaignResult, Experiment, PreparedEpisode, TruthMap,
+                                         fine_summary, simulate_screened)
 from aligngym.scenarios.campaign.claims import Claim
 from aligngym.scenarios.config import ConfigError, ScenarioConfig
 from aligngym.scenarios.campaign.settings import MAX_RUN, POSITIVE, bounded
@@ -221,12 +222,6 @@ HULL_FRAME_TRUTH = TruthMap(LAYOUT, ("misalignment",), about_floor_errors)
 fixed in the hull frame (the model's sensor-frame bias states then have no true value)."""
 
 
-def signed_extreme(errors: np.ndarray, pick) -> np.ndarray:
-    """Per axis, the signed error whose magnitude is picked (argmax or argmin) (3,)."""
-    idx = pick(np.abs(errors), axis=0)
-    return errors[idx, np.arange(errors.shape[1])]
-
-
 def start_attitude(episodes: list[Paper003Episode], start_error: np.ndarray) -> np.ndarray:
     """Initial estimate C_s^i(t1) (B, 3, 3): the truth turned by a starting misalignment
     phi E, N, U (rad), common (3,) or per episode (B, 3)."""
@@ -234,43 +229,6 @@ def start_attitude(episodes: list[Paper003Episode], start_error: np.ndarray) -> 
     t1 = episodes[0].inputs.t[0]
     lat = np.array([e.lat for e in episodes])
     return C_n_i(t1, lat) @ rotvec_to_dcm(-np.asarray(start_error)) @ C_true
-
-
-def coarse_errors(result: CampaignResult) -> np.ndarray:
-    """(N, 3) rad coarse-alignment errors of the campaign's episodes."""
-    return np.stack([e.coarse_error for e in result.episodes])
-
-
-def coarse_summary(result: CampaignResult) -> dict[str, list[float]]:
-    """Mean, max and min of the coarse errors per axis, deg (max/min by magnitude)."""
-    e = coarse_errors(result)
-    return {"mean_deg": list(e.mean(0) / deg),
-            "max_deg": list(signed_extreme(e, np.argmax) / deg),
-            "min_deg": list(signed_extreme(e, np.argmin) / deg)}
-
-
-def format_tables(result: CampaignResult) -> str:
-    """The coarse and fine tables, shaped like the paper's."""
-    exp = result.experiment
-    n = len(result.seeds)
-    coarse = coarse_summary(result)
-    lines = [f"Coarse alignment (inertial frame, {exp.coarse_duration:g} s), {n} runs: "
-             "error (deg)", f"{'':8s}" + "".join(f"{a:>14s}" for a in AXES)]
-    for key, label in (("mean_deg", "mean"), ("max_deg", "max"), ("min_deg", "min")):
-        lines.append(f"{label:8s}" + "".join(f"{v:14.5f}" for v in coarse[key]))
-    floor = exp.unmodelled_floor(result.episodes) if result.episodes else None
-    if floor is not None:
-        lines += ["", "Hull-frame biases leave every episode a floor the model's sensor-frame "
-                  "states cannot hold; diverged = final error - floor > 5 x 3 sigma. Floor "
-                  "(arcmin) " + ", ".join(f"{a} RMS {v:.4f}" for a, v in
-                                          zip(AXES, np.sqrt(np.mean(floor ** 2, 0)) / arcmin))]
-    for start in STARTS:
-        err = result.start_errors[start] / arcmin
-        lines += ["", campaign.format_fine_table(
-            result, start, f"Fine alignment ({exp.fine_duration:g} s) from the {start} "
-            f"coarse error [{', '.join(f'{e:.2f}' for e in err)}] arcmin: final error "
-            "(arcmin)")]
-    return "\n".join(lines)
 
 
 def run_filter(name: str, start: str, start_error: np.ndarray,
