@@ -105,7 +105,7 @@ class AlignmentRun:
         # the epoch an episode diverges at counts too (the report's NIS: live before)
         self.nis[:, k] = report.nis
         self.nis_dof[:, k] = report.nis_dof
-        filt.x, filt.P = model.feedback(filt.x, filt.P, filt.live)
+        filt.x, filt.P = model.feedback(report.x, report.P, filt.live)   # the posterior
         self.x[:, k + 1] = filt.x
         self.k += 1
         self._record()
