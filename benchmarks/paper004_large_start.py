@@ -59,6 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     print("| model, rule | points | seed | heading error t = 0..12 s (deg) | 60 / 300 / 600 s "
           "(arcmin) |")
     print("|---|---|---|---|---|")
+    # rotation_vector_dynamics.reset_jacobian, replaced where the model's feedback finds it
     import aligngym.estimators.rotation_vector as rotation_vector
     reset = rotation_vector.reset_jacobian
 

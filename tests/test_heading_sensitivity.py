@@ -32,6 +32,7 @@ import pytest
 
 from aligngym.estimators import euler_kinematics as ek
 from aligngym.estimators import rotation_vector as rv
+from aligngym.estimators import rotation_vector_dynamics as rvd
 from aligngym.estimators.inertial_fine import (PHI as PHI_I, V as V_I, FineInputs, FineTuning,
                                       InertialFineModel, SwayAwareInertialModel,
                                       SwaySpectrum)
@@ -154,40 +155,40 @@ def test_paper003_velocity_rows_use_gravity_not_the_estimate(sway):
 # --- 004: rotation-vector models ----------------------------------------------------------
 
 def _quantities(C_b_p, f_b=F_B):
-    return rv.InsQuantities(C_b_p=C_b_p, f_b=f_b, v=np.zeros(3), lat=np.array(LAT),
-                            lon=np.array(LON), h=np.array(H))
+    return rvd.InsQuantities(C_b_p=C_b_p, f_b=f_b, v=np.zeros(3), lat=np.array(LAT),
+                             lon=np.array(LON), h=np.array(H))
 
 
 def _dv_rate(derivative, q):
     """C_p^n -> the velocity rows (3,) of derivative at phi = log(C_p^n), the bias
     estimate true, the other states 0."""
     def rate(C_pn):
-        x = np.zeros(rv.N_STATES)
-        x[rv.PHI] = dcm_to_rotvec(C_pn)
-        x[rv.NABLA] = NABLA
-        return derivative(x, q)[rv.DV]
+        x = np.zeros(rvd.N_STATES)
+        x[rvd.PHI] = dcm_to_rotvec(C_pn)
+        x[rvd.NABLA] = NABLA
+        return derivative(x, q)[rvd.DV]
     return rate
 
 
 def test_paper004_transformed_models_have_no_heading_sensitivity():
-    """estimators/rotation_vector.py st_derivative (6.4; the STUKF) and stekf_matrix (6.7;
-    the STEKF): on a still base the velocity rows C_b^p nabla + (I - C_n^p) g^n hold no
-    f~, and a left rotation about the vertical leaves C_n^p g^n unchanged: zero heading
-    column at the level-perturbed estimate (open loop, phi^ = 30 deg of heading) and at
-    phi = 0 on the corrected INS (closed loop), level columns of ~g. The raw phi_U column
-    is not zero (~0.23 m/s^2/rad here) and is physical: for a rotation vector with level
-    components phi_U is not a pure heading coordinate; it equals the derivative of the
-    exact still-base rate (exp(-[phi x]) - I) g e3 + C_b^p nabla."""
-    rate = _dv_rate(rv.st_derivative, _quantities(C_BP))
+    """estimators/rotation_vector_dynamics.py st_derivative (6.4; the STUKF) and stekf_matrix
+    (6.7; the STEKF): on a still base the velocity rows C_b^p nabla + (I - C_n^p) g^n hold no
+    f~, and a left rotation about the vertical leaves C_n^p g^n unchanged: zero heading column
+    at the level-perturbed estimate (open loop, phi^ = 30 deg of heading) and at phi = 0 on the
+    corrected INS (closed loop), level columns of ~g. The raw phi_U column is not zero
+    (~0.23 m/s^2/rad here) and is physical: for a rotation vector with level components phi_U
+    is not a pure heading coordinate; it equals the derivative of the exact still-base rate
+    (exp(-[phi x]) - I) g e3 + C_b^p nabla."""
+    rate = _dv_rate(rvd.st_derivative, _quantities(C_BP))
     C_hat = ek.C_p_n(ALPHA_HAT)
     np.testing.assert_allclose(left_derivative(rate, C_hat), 0.0, atol=ZERO)
     for axis in (rot_x, rot_y):
         assert np.linalg.norm(left_derivative(rate, C_hat, axis)) > 0.99 * G
-    fed = _dv_rate(rv.st_derivative, _quantities(C_BP_FED))
+    fed = _dv_rate(rvd.st_derivative, _quantities(C_BP_FED))
     np.testing.assert_allclose(left_derivative(fed, np.eye(3)), 0.0, atol=ZERO)
-    F = rv.stekf_matrix(_quantities(C_BP_FED))
-    np.testing.assert_allclose(F[rv.DV, 2], 0.0, atol=1e-12)
-    assert np.all(np.linalg.norm(F[rv.DV, 0:2], axis=0) > 0.99 * G)
+    F = rvd.stekf_matrix(_quantities(C_BP_FED))
+    np.testing.assert_allclose(F[rvd.DV, 2], 0.0, atol=1e-12)
+    assert np.all(np.linalg.norm(F[rvd.DV, 0:2], axis=0) > 0.99 * G)
 
     def physical(phi):
         return ((rotvec_to_dcm(-phi) - np.eye(3)) @ np.array([0.0, 0.0, G])
@@ -204,19 +205,18 @@ def test_paper004_transformed_models_have_no_heading_sensitivity():
 
 @pytest.mark.parametrize("sway", [False, True])
 def test_paper004_classic_model_documents_a_false_heading_sensitivity(sway):
-    """estimators/rotation_vector.py classic_derivative (6.2; the UKF and the EKF of paper
-    004, ``ukf-3n`` and ``ekf``): its velocity rows (I - C_p^n) f^p + C_p^n C_b^p nabla
-    have the 002 defect. Along heading the column is -e3 x C_p^n(phi^)(f^p - C_b^p
-    nabla^). On the truth that is the physical -e3 x a^n: 0 still, (-0.15, -0.2, 0)
-    m/s^2/rad for a^n = (0.2, -0.15, 0.05) m/s^2 of sway. At the level-perturbed estimate
-    (open loop, phi^ = 30 deg of heading) and on the corrected INS at phi = 0 (closed
-    loop) it is the sway seen through the estimate, -e3 x C a^n (C = C_p^n(phi^) C_n^p:
-    real, and zero still), plus the false -g e3 x C e3, of size g |d_level| = 0.31
-    m/s^2/rad whatever the sway. The fix: the transformed model's rows (the test below).
-    Update this test when it is fixed."""
+    """estimators/rotation_vector_dynamics.py classic_derivative (6.2; the UKF and the EKF of
+    paper 004, ``ukf-3n`` and ``ekf``): its velocity rows (I - C_p^n) f^p + C_p^n C_b^p nabla
+    have the 002 defect. Along heading the column is -e3 x C_p^n(phi^)(f^p - C_b^p nabla^). On
+    the truth that is the physical -e3 x a^n: 0 still, (-0.15, -0.2, 0) m/s^2/rad for a^n =
+    (0.2, -0.15, 0.05) m/s^2 of sway. At the level-perturbed estimate (open loop, phi^ = 30 deg
+    of heading) and on the corrected INS at phi = 0 (closed loop) it is the sway seen through
+    the estimate, -e3 x C a^n (C = C_p^n(phi^) C_n^p: real, and zero still), plus the false
+    -g e3 x C e3, of size g |d_level| = 0.31 m/s^2/rad whatever the sway. The fix: the
+    transformed model's rows (the test below). Update this test when it is fixed."""
     a_n = np.array([0.2, -0.15, 0.05]) if sway else np.zeros(3)
     f_b = F_B + C_BN.T @ a_n
-    rate = _dv_rate(rv.classic_derivative, _quantities(C_BP, f_b))
+    rate = _dv_rate(rvd.classic_derivative, _quantities(C_BP, f_b))
     np.testing.assert_allclose(left_derivative(rate, ek.C_p_n(ALPHA_T)),
                                -np.cross(E3, a_n), atol=ZERO)
     C = ek.C_p_n(ALPHA_HAT) @ ek.C_p_n(ALPHA_T).T             # the estimate's view of n
@@ -224,7 +224,7 @@ def test_paper004_classic_model_documents_a_false_heading_sensitivity(sway):
     false = -G * np.cross(E3, C @ E3)
     np.testing.assert_allclose(expected, -np.cross(E3, C @ a_n) + false, atol=1e-12)
     assert abs(np.linalg.norm(false) / FALSE_SIZE - 1) < 0.05
-    fed = _dv_rate(rv.classic_derivative, _quantities(C_BP_FED, f_b))
+    fed = _dv_rate(rvd.classic_derivative, _quantities(C_BP_FED, f_b))
     for column in (left_derivative(rate, ek.C_p_n(ALPHA_HAT)),
                    left_derivative(fed, np.eye(3))):
         np.testing.assert_allclose(column, expected, atol=ZERO)
@@ -262,16 +262,16 @@ def test_paper004_classic_ukf_lands_inside_its_sigma_on_ideal_data(monkeypatch):
         gyro_noise_density=0.01 * deg / 60, accel_noise_density=1e-4, gyro_bias_walk=1e-10,
         accel_bias_walk=1e-7, gnss_position_sigma_h=0.02, gnss_position_sigma_v=0.03,
         gnss_velocity_sigma=0.02)
-    classic = rv.classic_derivative
+    classic = rvd.classic_derivative
 
     def still_base_rows(x, q):
         out = classic(x, q)
-        out[..., rv.DV] = rv.st_derivative(x, q)[..., rv.DV]
+        out[..., rvd.DV] = rvd.st_derivative(x, q)[..., rvd.DV]
         return out
 
     ends = []
     for derivative in (classic, still_base_rows):
-        monkeypatch.setattr(rv, "classic_derivative", derivative)
+        monkeypatch.setattr(rv, "classic_derivative", derivative)  # the model's name for it
         r = run_alignment(make_filter("ukf-3n"), rv.RotationVectorGnssModel(inputs, tuning,
                                                                             "classic"))
         error = misalignment(np.broadcast_to(C_BN, (1, K + 1, 3, 3)), r.C_s_n)

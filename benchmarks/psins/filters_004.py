@@ -63,7 +63,7 @@ def export_runs(exp, episodes, start_error: np.ndarray, work: Path) -> list[Path
     (K+1, 3) rad/s the indexer's rate, P0, the white-noise densities qdiag (Q = diag(qdiag)
     T), R, T s, and the ellipsoid (WGS-84 a, f, earth rate) for PSINS's glvf."""
     from scipy.io import savemat
-    from aligngym.estimators.rotation_vector import DP, DV, EPS, NABLA, PHI
+    from aligngym.estimators.rotation_vector_dynamics import DP, DV, EPS, NABLA, PHI
     from aligngym.models import earth
     from aligngym.models.attitude import quat_to_dcm
 

@@ -1,7 +1,7 @@
 function xd = gnss_004_xdot(x, q)
 % Continuous-time error dynamics of paper 004's classic large-angle model, (6.1), (6.2),
-% (6.5) of ALGORITHMS 6 (estimators.rotation_vector.classic_derivative), exact in the
-% rotation vector and in the rate differences (no linearisation).
+% (6.5) of ALGORITHMS 6 (estimators.rotation_vector_dynamics.classic_derivative), exact
+% in the rotation vector and in the rate differences (no linearisation).
 %   x = [phi (3), dv (3), dp = (dL, dlambda, dh), eps (3), nabla (3)]; C_p^n = rv2m(phi)
 %   (p: the INS's frame; true C_b^n = rv2m(phi) C_b^p, PSINS's qdelphi convention),
 %   dv = v~ - v, dp = p~ - p, eps and nabla the gyro drift and accelerometer bias, IMU frame.

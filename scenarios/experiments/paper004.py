@@ -34,8 +34,9 @@ from aligngym.estimators.inertial_frame import gimbal_rate_in_sensor, velocity_a
 from aligngym.estimators.loose_gps import ins_start_at_fix
 from aligngym.estimators.metrics import misalignment
 from aligngym.estimators.model import stack_episodes
-from aligngym.estimators.rotation_vector import (EPS, LAYOUT, NABLA, IndexedGpsInsInputs,
-                                                 RotationVectorGnssModel, RotationVectorTuning)
+from aligngym.estimators.rotation_vector import (IndexedGpsInsInputs, RotationVectorGnssModel,
+                                                 RotationVectorTuning)
+from aligngym.estimators.rotation_vector_dynamics import EPS, LAYOUT, NABLA
 from aligngym.models.attitude import quat_to_dcm, rotvec_to_dcm
 from aligngym.models.units import deg, deg_per_h, mg
 from aligngym.models.gimbal import gimbal_C_s_b
