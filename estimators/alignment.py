@@ -75,6 +75,11 @@ class AlignmentRun:
     def t(self) -> np.ndarray:
         return self.model.t
 
+    @property
+    def diverged(self) -> np.ndarray:
+        """(B,) the episodes the filter's guards have flagged diverged so far (frozen)."""
+        return self.filt.health.diverged.copy()
+
     def _record(self) -> None:
         k, filt = self.k, self.filt
         self.C_s_n[:, k] = self.model.attitude(k, filt.x)

@@ -318,7 +318,7 @@ class Cohort:
                                r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]),
                                tuning=tuning)
         errors = self.attitude_errors()
-        diverged = run.filt.health.diverged.copy()
+        diverged = run.diverged
         terminated = diverged
         truncated = np.full(run.batch, run.k >= self.steps) & ~diverged
         over = (terminated | truncated) & ~self.ended     # ending at this step
@@ -339,7 +339,7 @@ class Cohort:
     def observations(self) -> np.ndarray:
         """What each member's filter knows (see the module docstring), (B, OBS_SIZE)
         float32."""
-        run, filt, space = self.run, self.filter, self.env.single_observation_space
+        run, space = self.run, self.env.single_observation_space
         obs = np.zeros((run.batch, OBS_SIZE))
         first = INNOVATIONS.start
         report = self.report
@@ -349,7 +349,7 @@ class Cohort:
             m = min(e.shape[-1], INNOVATIONS.stop - first)
             obs[:, first:first + m] = np.where(report.valid, e, 0.0)[:, :m]
         sub = self.observed
-        diag = np.diagonal(filt.P, axis1=-2, axis2=-1)[:, sub]
+        diag = np.diagonal(run.P[:, run.k], axis1=-2, axis2=-1)[:, sub]   # posterior
         diag0 = np.diagonal(run.P[:, 0], axis1=-2, axis2=-1)[:, sub]
         first = COVARIANCE.start
         with np.errstate(divide="ignore"):
