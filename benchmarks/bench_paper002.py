@@ -182,29 +182,54 @@ def ours(experiment, episodes, start_error, epochs):
     return run, time.perf_counter() - t0
 
 
-def compare_filterpy(experiment, episodes, n_filterpy: int, seconds: float) -> None:
-    """Part 2 (see the module docstring)."""
+def compare_filterpy(experiment, episodes, n_filterpy: int, seconds: float,
+                     repeats: int = 5) -> None:
+    """Part 2 (see the module docstring): each side timed ``repeats`` times, interleaved
+    (ours on all, ours on the few, filterpy on the few), after one untimed warm-up of
+    ours; the median of each."""
     epochs = int(round(seconds / experiment.filter_step))
     start = experiment.start_errors(episodes)[START]
     B = len(episodes)
-    run_all, wall_all = ours(experiment, episodes, start, epochs)
     few = episodes[:n_filterpy]
-    run_few, wall_few = ours(experiment, few, start[:n_filterpy], epochs)
-    fp_wall = 0.0
-    rows = []
-    for b, episode in enumerate(few):
-        t0 = time.perf_counter()
-        heading, x_fp, P_fp = filterpy_episode(experiment, episode, start[b], epochs)
-        fp_wall += time.perf_counter() - t0
-        x_ours = run_all.filt.x[b]
-        P_ours = run_all.filt.P[b]
-        d_final = wrap_angle(x_ours[2] - x_fp[2])
-        d_run = np.abs(wrap_angle(run_all.x[b, 1:epochs + 1, 2] - heading)).max()
-        dx = np.abs(np.r_[wrap_angle(x_ours[:3] - x_fp[:3]), x_ours[3:] - x_fp[3:]])
-        dx_rel = dx / np.sqrt(np.diag(P_ours))
-        d_sigma = np.sqrt(P_ours[2, 2]) - np.sqrt(P_fp[2, 2])
-        dP_rel = np.abs(P_ours - P_fp).max() / np.abs(P_ours).max()
-        rows.append((episode.seed, x_ours[2], d_final, d_run, dx_rel.max(), d_sigma, dP_rel))
+    ours(experiment, few, start[:n_filterpy], epochs)            # warm-up (compiled paths)
+    walls_all, walls_few, walls_fp = [], [], []
+    for _ in range(repeats):
+        run_all, wall = ours(experiment, episodes, start, epochs)
+        walls_all.append(wall)
+        run_few, wall = ours(experiment, few, start[:n_filterpy], epochs)
+        walls_few.append(wall)
+        fp_wall = 0.0
+        rows = []
+        for b, episode in enumerate(few):
+            t0 = time.perf_counter()
+            heading, x_fp, P_fp = filterpy_episode(experiment, episode, start[b], epochs)
+            fp_wall += time.perf_counter() - t0
+            rows.append(_agreement(run_all, b, episode, heading, x_fp, P_fp, epochs))
+        walls_fp.append(fp_wall)
+    wall_all, wall_few, fp_wall = (float(np.median(w)) for w in (walls_all, walls_few,
+                                                                  walls_fp))
+    _print_comparison(B, n_filterpy, epochs, seconds, wall_all, wall_few, fp_wall, rows,
+                      repeats)
+
+
+def _agreement(run_all, b: int, episode, heading, x_fp, P_fp, epochs: int) -> tuple:
+    """One episode's agreement row (ours on all episodes - filterpy)."""
+    x_ours = run_all.x[b, epochs]
+    P_ours = run_all.P[b, epochs]
+    d_final = wrap_angle(x_ours[2] - x_fp[2])
+    d_run = np.abs(wrap_angle(run_all.x[b, 1:epochs + 1, 2] - heading)).max()
+    dx = np.abs(np.r_[wrap_angle(x_ours[:3] - x_fp[:3]), x_ours[3:] - x_fp[3:]])
+    dx_rel = dx / np.sqrt(np.diag(P_ours))
+    d_sigma = np.sqrt(P_ours[2, 2]) - np.sqrt(P_fp[2, 2])
+    dP_rel = np.abs(P_ours - P_fp).max() / np.abs(P_ours).max()
+    return (episode.seed, x_ours[2], d_final, d_run, dx_rel.max(), d_sigma, dP_rel)
+
+
+def _print_comparison(B: int, n_filterpy: int, epochs: int, seconds: float,
+                      wall_all: float, wall_few: float, fp_wall: float, rows: list,
+                      repeats: int) -> None:
+    """Part 2's printout: times per episode-epoch (medians of ``repeats``), speed-ups, the
+    agreement rows."""
     ours_us = wall_all * 1e6 / (B * epochs)
     few_us = wall_few * 1e6 / (n_filterpy * epochs)
     fp_us = fp_wall * 1e6 / (n_filterpy * epochs)
@@ -212,7 +237,8 @@ def compare_filterpy(experiment, episodes, n_filterpy: int, seconds: float) -> N
           f"({wall_all:.2f} s)")
     print(f"our UKF, batch of {n_filterpy:3d}: {few_us:9.1f} us per episode-epoch "
           f"({wall_few:.2f} s)")
-    print(f"filterpy UKF, loop:     {fp_us:9.1f} us per episode-epoch ({fp_wall:.2f} s)")
+    print(f"filterpy UKF, loop:     {fp_us:9.1f} us per episode-epoch ({fp_wall:.2f} s)"
+          f"   (medians of {repeats} interleaved runs)")
     print(f"speed-up (ours batched {B} / filterpy): {fp_us / ours_us:.1f}x   "
           f"(ours batched {n_filterpy}: {fp_us / few_us:.1f}x; issue 45 asks >= 10x at batch 3)")
     print(f"agreement after {seconds:g} s (ours - filterpy):")
