@@ -146,11 +146,8 @@ def _run_in_processes(tasks: list[FilterTask], processes: int,
 
 
 def _filter_worker(parent: int, shared: tuple) -> None:
-    """A filter worker's start (``executors.start_worker``): its BLAS and OpenMP pools
-    limited to one thread (the processes already take the cores), and the batch it
-    filters (inherited from the fork, not copied)."""
+    """A filter worker's start (``executors.start_worker``: one BLAS thread) and the batch
+    it filters (inherited from the fork, not copied)."""
     global _SHARED
-    from threadpoolctl import threadpool_limits
     start_worker(parent)
-    threadpool_limits(1)
     _SHARED = shared
