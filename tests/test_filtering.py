@@ -129,3 +129,26 @@ def test_work_queued_for_the_wait_runs_once_here_while_the_workers_run(short002,
               for run in run_filter_starts(name, starts, episodes, exp)]
     for a, b in zip(runs, serial):
         np.testing.assert_array_equal(a.result.x, b.result.x)
+
+
+def test_a_split_that_shortens_the_phase_is_made_and_one_that_does_not_is_not():
+    """Paper 001's three filters of one task each on two processes: one is split in two
+    (four tasks, two a process: the estimated phase 19600 against 22800 point-epochs an
+    epoch); on four processes none is (each has a process of its own already). Paper
+    000's measured cost a member (``member_points``, 650 points of paper 002's model)
+    splits its 64 members (two starts) in two for every filter, where its rules' 7-36
+    points would not."""
+    e001 = experiment("paper001")
+    plan = filtering.plan_filter_tasks(["lckf", "rakf", "swakf"], e001, 32, 100, 2)
+    assert [(t.name, t.index.size) for t in plan] == [("lckf", 16), ("lckf", 16),
+                                                      ("rakf", 32), ("swakf", 32)]
+    assert len(filtering.plan_filter_tasks(["lckf", "rakf", "swakf"], e001, 32, 100, 4)) == 3
+    e000 = experiment("paper000")
+    plan = filtering.plan_filter_tasks(list(e000.default_filters), e000, 64, 100, 2)
+    assert [t.index.size for t in plan] == [32] * 8
+
+
+def test_the_makespan_hands_the_largest_task_out_first():
+    assert filtering.makespan([3.0, 3.0, 2.0, 2.0, 2.0], 2) == 7.0
+    assert filtering.makespan([5.0, 1.0, 1.0], 2) == 5.0
+    assert filtering.makespan([1.0, 1.0, 1.0], 4) == 1.0

@@ -105,6 +105,11 @@ class Experiment(ABC):
     """Model variants (``FilterEntry.model``) the experiment can build besides its own."""
     state_count: int = 0
     """Dimension of the experiment's fine-alignment state."""
+    member_points: float = 1.0
+    """The least work per member and epoch of its default filters, in integration points
+    of paper 002's model (0.23 us each; measured by benchmarks/bench_member_cost.py): the
+    filter phase splits a batch by it where its models' maps cost more than a point of
+    paper 002's (``filtering.member_points``)."""
     filter_settings: frozenset[str] = frozenset({"default_filters", "rms_window",
                                                  "heading_threshold_arcmin"})
     """Settings that concern the filters or the analysis only: the prepared episodes do

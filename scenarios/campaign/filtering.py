@@ -3,9 +3,11 @@ episodes, planned as tasks (a filter on a chunk of the batch) and run in local w
 processes alongside each other.
 
 Batching amortises the per-epoch cost of the Python and NumPy calls over the episodes,
-so a batch is split only where each chunk keeps enough integration points per epoch
-(``MIN_CHUNK_POINTS``), never into more chunks than there are processes, and the
-processes never outnumber the cores: asking for more workers cannot make a run slower.
+so a batch is split only where each chunk keeps enough work per epoch
+(``MIN_CHUNK_POINTS``, in points of paper 002's model: ``member_points``) or where a
+split shortens the phase as its work estimate schedules it, never into more chunks than
+there are processes, and the processes never outnumber the cores: asking for more workers cannot
+make a run slower.
 A campaign whose filters are little work (``PARALLEL_MIN_WORK``) runs them here, one
 after another, as does a platform other than Linux (the workers are forked, to inherit
 the prepared episodes without copying them) and a process that has started Ray (a Ray
@@ -43,6 +45,11 @@ MIN_CHUNK_POINTS = 4 * EPOCH_OVERHEAD_POINTS
 """Points per epoch a chunk of a batch keeps, to a member (its fixed cost about a fifth of
 its work at most): sghkf-4 (1981 points) splits in two from 21 members on, a UKF of 21
 points from 1905."""
+SPLIT_GAIN = 0.95
+"""A batch is split further only where the estimate shortens the phase by 5 % or more:
+the estimate's fixed cost is paper 002's UKF's, and an EKF's is larger (its Jacobian), so
+a split that gains less may lose (paper 002's EKF split in two: 0.03 % by the estimate,
+slower measured)."""
 PARALLEL_MIN_WORK = 4e6
 """Point-epochs (with each task's fixed cost, ``task_work``) below which the filters run
 in this process: starting workers and returning their runs costs about what 1 s of
@@ -59,24 +66,71 @@ class FilterTask:
     work: float
 
 
-def task_work(points: int, members: int, epochs: int) -> float:
+def task_work(points: float, members: int, epochs: int) -> float:
     """Point-epochs of a filter of ``points`` per member over ``members`` for ``epochs``
     epochs, its fixed per-epoch cost included."""
     return float(epochs) * (EPOCH_OVERHEAD_POINTS + members * points)
 
 
+def member_points(name: str, experiment: Experiment) -> float:
+    """A filter's work per member and epoch, in integration points of paper 002's model
+    (``EPOCH_OVERHEAD_POINTS``' unit): its rule's points, or the experiment's measured
+    floor (``Experiment.member_points``) where its model's maps cost more a point."""
+    points = filter_entry(name).rule().point_count(experiment.state_count)
+    return float(max(points, experiment.member_points))
+
+
 def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
                       epochs: int, processes: int) -> list[FilterTask]:
     """The tasks of a campaign's filter phase: each filter's batch of ``members`` in as
-    many chunks as the processes allow and each chunk's points (``MIN_CHUNK_POINTS``)
-    justify; in filter order, chunks in member order."""
+    many chunks as the processes allow and each chunk's work (``member_points``, at
+    least ``MIN_CHUNK_POINTS`` a chunk) justifies; then, while it shortens the phase (by
+    ``SPLIT_GAIN``) as the work estimate (``task_work``) schedules it (``makespan``:
+    largest tasks first), one filter's batch more split, never into more chunks than
+    processes, and below MIN_CHUNK_POINTS only where there are more tasks than processes
+    (paper 001: three filters of one task each on two processes, one of them split in
+    two). In filter order, chunks in member order."""
+    chunks, points = {}, {}
+    for name in filters:
+        points[name] = member_points(name, experiment)
+        chunks[name] = int(max(1, min(processes, members * points[name] // MIN_CHUNK_POINTS,
+                                      members)))
+
+    def works(counts: dict[str, int]) -> list[float]:
+        return [task_work(points[n], index.size, epochs) for n in filters
+                for index in np.array_split(np.arange(members), counts[n])]
+
+    def splittable(name: str) -> bool:
+        """One more chunk for this filter: within the processes and the members, and
+        either each chunk keeping MIN_CHUNK_POINTS or more tasks than processes (a split
+        then fills a process that would wait)."""
+        more = chunks[name] + 1
+        return more <= min(processes, members) and (
+            (members // more) * points[name] >= MIN_CHUNK_POINTS
+            or sum(chunks.values()) > processes)
+
+    best = makespan(works(chunks), processes)
+    while processes > 1:
+        trials = [(makespan(works({**chunks, n: chunks[n] + 1}), processes), n)
+                  for n in filters if splittable(n)]
+        if not trials or min(trials)[0] > SPLIT_GAIN * best:
+            break
+        best, name = min(trials)
+        chunks[name] += 1
     tasks = []
     for name in filters:
-        points = filter_entry(name).rule().point_count(experiment.state_count)
-        chunks = int(max(1, min(processes, members * points // MIN_CHUNK_POINTS, members)))
-        for index in np.array_split(np.arange(members), chunks):
-            tasks.append(FilterTask(name, index, task_work(points, index.size, epochs)))
+        for index in np.array_split(np.arange(members), chunks[name]):
+            tasks.append(FilterTask(name, index, task_work(points[name], index.size, epochs)))
     return tasks
+
+
+def makespan(works: list[float], processes: int) -> float:
+    """The longest process's work when the tasks (their works) go, largest first, each to
+    the process with the least so far (how ``run_filters`` hands them out)."""
+    loads = [0.0] * max(1, processes)
+    for work in sorted(works, reverse=True):
+        loads[loads.index(min(loads))] += work
+    return max(loads)
 
 
 _SHARED: tuple | None = None

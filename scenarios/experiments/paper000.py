@@ -302,6 +302,7 @@ class Paper000Experiment(Experiment):
     worlds = ("car",)
     requires = (SensorTable("odometer"), StrapdownImu())
     state_count = 18
+    member_points = 650.0    # rdghkf's 150 us a member-epoch, 2026-12-06 (bench_member_cost.py)
     observation_features = frozenset({"conditionally-linear"})
     filter_settings = Experiment.filter_settings | {
         "attitude_sigma_deg", "feedback_sigma_deg", "measurement_sigma", "position_sigma",

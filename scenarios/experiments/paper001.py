@@ -255,6 +255,7 @@ class Paper001Experiment(Experiment):
     requires = (SensorTable("gps"), StrapdownImu(), StepOnFixes("GPS"))
     model_variants = ("position-velocity",)
     state_count = 15
+    member_points = 200.0    # lckf's 46 us a member-epoch, 2026-12-06 (bench_member_cost.py)
     observation_features = frozenset({"conditionally-linear", "directions"})
     filter_settings = Experiment.filter_settings | {"accel_noise_density", "attitude_sigma_deg"}
     starts = (START,)

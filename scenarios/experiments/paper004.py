@@ -260,6 +260,7 @@ class Paper004Experiment(Experiment):
     requires = (SensorTable("gps"), StepOnFixes("GNSS"))
     model_variants = ("st", "st-linear")
     state_count = 15
+    member_points = 72.0    # stekf's 16.5 us a member-epoch, 2026-12-06 (bench_member_cost.py)
     filter_settings = Experiment.filter_settings | {
         "accel_bias_walk", "gyro_bias_walk", "position_sigma", "velocity_sigma"}
 
