@@ -15,7 +15,8 @@ UnscentedKalmanFilter on the same model and data.
    2, 0)`` (the same UT), episode by episode: fx is ``plain_fx``, the process map for one
    state written here in plain NumPy, hx(x) = H x, Q and R from the model each epoch, angle states 0..2 averaged
    and differenced with wrapping (x_mean_fn, residual_x, state_add), ``model.feedback``
-   after each update. Both run the first ``--compare-seconds`` of the same episodes.
+   after each update. Both run the first ``--compare-seconds`` of the same episodes,
+   each side five times, interleaved, after a warm-up; the medians are printed.
    Printed: time per episode-epoch of each, the speed-up, and the difference of the
    estimates (heading at the end and over the run, whole state, heading sigma).
 
@@ -196,7 +197,7 @@ def compare_filterpy(experiment, episodes, n_filterpy: int, seconds: float,
     for _ in range(repeats):
         run_all, wall = ours(experiment, episodes, start, epochs)
         walls_all.append(wall)
-        run_few, wall = ours(experiment, few, start[:n_filterpy], epochs)
+        _, wall = ours(experiment, few, start[:n_filterpy], epochs)
         walls_few.append(wall)
         fp_wall = 0.0
         rows = []

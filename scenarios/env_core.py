@@ -349,7 +349,7 @@ class Cohort:
             m = min(e.shape[-1], INNOVATIONS.stop - first)
             obs[:, first:first + m] = np.where(report.valid, e, 0.0)[:, :m]
         sub = self.observed
-        diag = np.diagonal(run.P[:, run.k], axis1=-2, axis2=-1)[:, sub]   # posterior
+        diag = np.diagonal(run.P[:, run.k], axis1=-2, axis2=-1)[:, sub]   # after the feedback
         diag0 = np.diagonal(run.P[:, 0], axis1=-2, axis2=-1)[:, sub]
         first = COVARIANCE.start
         with np.errstate(divide="ignore"):

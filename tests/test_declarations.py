@@ -12,7 +12,7 @@ from dataclasses import fields
 import pytest
 
 from aligngym.scenarios import registry
-from aligngym.scenarios.campaign import Experiment
+from aligngym.scenarios.campaign import Experiment, PreparedEpisode
 from aligngym.scenarios.experiments import experiment_class, paper003
 
 from dvl_experiment import DvlAidedExperiment
@@ -52,6 +52,7 @@ CLASSES = [experiment_class(name) for name in registry.experiment_names()
 def test_no_experiment_method_only_forwards(cls):
     assert issubclass(cls, Experiment)
     assert forwards(cls) == []
+    assert callable(cls.preparation) and issubclass(cls.episode_class, PreparedEpisode)
 
 
 def test_the_check_finds_forwards():
@@ -76,7 +77,7 @@ def test_the_check_finds_forwards():
     assert forwards(Forwarding) == ["episode_class", "summary", "start_errors", "nees_dof"]
 
 
-def test_the_dvl_experiment_is_not_a_papers():
+def test_the_dvl_experiment_is_not_a_papers_subclass():
     assert not any(issubclass(DvlAidedExperiment, experiment_class(name))
                    for name in registry.experiment_names() if name.startswith("paper"))
 
@@ -87,5 +88,11 @@ def test_every_settings_type_resolves(cls):
     annotations: an annotation of the base that does not resolve at run time (a name
     imported for type checkers only) would leave every setting unchecked."""
     import typing
-    hints = typing.get_type_hints(cls)
+
+    from aligngym.scenarios.config import SettingError
+    hints = typing.get_type_hints(cls)          # raises where an annotation does not resolve
     assert all(f.name in hints for f in fields(cls))
+    with pytest.raises(SettingError, match="rms_window"):
+        cls(rms_window=-1.0)                    # declared > 0: checked
+    with pytest.raises(SettingError, match="rms_window"):
+        cls(rms_window="60")                    # a string for a number: checked

@@ -84,6 +84,9 @@ def test_paper_metrics_count_nan_as_outside(nan_run):
         def accuracy_window(self, t, fine_start):
             return np.ones(t.size, bool)
 
+        def nees_dof(self):
+            return 9
+
     out = paper004.run_metrics(bad, [Episode()], Window())
     end = float(bad.result.t[-1] - bad.result.t[0])
     assert out["convergence_s"] == end and out["convergence_p90_s"] == end

@@ -50,7 +50,7 @@ def run_metrics(run, episodes: list[GnssEpisode], experiment: Experiment) -> dic
         "heading_outside_1deg_fraction": float(np.mean(~converged | r.diverged)),
         "nees_mean": float(np.nanmean(nees_ep[sel])) if np.isfinite(nees_ep[sel]).any()
         else None,
-        "nees_dof": 9,
+        "nees_dof": experiment.nees_dof(),
         "heading_inside_3sigma": float(inside[sel].mean()),
         "final_heading_error_deg": float(np.sqrt(np.mean(run.error_n[sel, -1, 2] ** 2)) / deg),
         "ms_per_epoch": r.seconds_per_epoch * 1e3,

@@ -82,7 +82,8 @@ class Experiment(ABC):
     that does not depend on the filter (a module function, declared with
     ``staticmethod``)."""
     truth_map: ClassVar[TruthMap | None] = None
-    """The states the NEES compares with the truth (None: no NEES)."""
+    """The states the NEES compares with the truth (None: no NEES); a property where it
+    depends on the scenario (paper 003's, by its IMU's bias frame)."""
     summarise: ClassVar[Callable[["CampaignResult"], dict]] = staticmethod(
         lambda result: {"fine": fine_summary(result)})
     """summarise(result) -> the JSON summary (default: the final errors per filter and
@@ -107,7 +108,8 @@ class Experiment(ABC):
     """Dimension of the experiment's fine-alignment state."""
     member_points: float = 1.0
     """The least work per member and epoch of its default filters, in integration points
-    of paper 002's model (0.23 us each; measured by benchmarks/bench_member_cost.py): the
+    of paper 002's model (0.23 us each on the 2-core x86_64 machine of 2026-12-06, 0.27
+    on the earlier one; measured by benchmarks/bench_member_cost.py): the
     filter phase splits a batch by it where its models' maps cost more than a point of
     paper 002's (``filtering.member_points``)."""
     filter_settings: frozenset[str] = frozenset({"default_filters", "rms_window",
@@ -279,14 +281,14 @@ class Experiment(ABC):
 
     def format_tables(self, result: "CampaignResult") -> str:
         """The paper-shaped tables (``tabulate``)."""
-        if self.tabulate is None:
+        if type(self).tabulate is None:
             return format_fine_table(result, self.starts[0])
         return type(self).tabulate(result)
 
     def plots(self, result: "CampaignResult", out: Path) -> list[Path]:
         """The experiment's own plots (PNG) in out (``own_plots``), besides the error
         curves."""
-        return [] if self.own_plots is None else type(self).own_plots(result, out)
+        return [] if type(self).own_plots is None else type(self).own_plots(result, out)
 
     def check(self, config: ScenarioConfig) -> None:
         """One-line ConfigError for settings of the scenario the experiment cannot use

@@ -73,9 +73,12 @@ def task_work(points: float, members: int, epochs: int) -> float:
 
 
 def member_points(name: str, experiment: Experiment) -> float:
-    """A filter's work per member and epoch, in integration points of paper 002's model
-    (``EPOCH_OVERHEAD_POINTS``' unit): its rule's points, or the experiment's measured
-    floor (``Experiment.member_points``) where its model's maps cost more a point."""
+    """A filter's work per member and epoch as the plan counts it: the larger of its
+    rule's points and the experiment's measured floor (``Experiment.member_points``, in
+    points of paper 002's model, ``EPOCH_OVERHEAD_POINTS``' unit). The rule's points are
+    counted as if a point cost what one of paper 002's does, so a filter dearer than the
+    floor (paper 004's stukf, 12x its stekf) is under-estimated: the floor errs towards
+    fewer chunks."""
     points = filter_entry(name).rule().point_count(experiment.state_count)
     return float(max(points, experiment.member_points))
 
@@ -102,20 +105,25 @@ def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
 
     def splittable(name: str) -> bool:
         """One more chunk for this filter: within the processes and the members, and
-        either each chunk keeping MIN_CHUNK_POINTS or more tasks than processes (a split
-        then fills a process that would wait)."""
+        either its chunks keeping MIN_CHUNK_POINTS (the rule above) or more tasks than
+        processes. There a split rebalances tasks that a process would otherwise run one
+        after another; with no more tasks than processes, the floor keeps a chunk's fixed
+        per-epoch cost under a fifth of its work (CPU spent for little time saved)."""
         more = chunks[name] + 1
         return more <= min(processes, members) and (
-            (members // more) * points[name] >= MIN_CHUNK_POINTS
+            members * points[name] // MIN_CHUNK_POINTS >= more
             or sum(chunks.values()) > processes)
 
     best = makespan(works(chunks), processes)
     while processes > 1:
         trials = [(makespan(works({**chunks, n: chunks[n] + 1}), processes), n)
                   for n in filters if splittable(n)]
-        if not trials or min(trials)[0] > SPLIT_GAIN * best:
+        if not trials:
             break
-        best, name = min(trials)
+        best_trial = min(trials, key=lambda trial: trial[0])   # ties: the first filter
+        if best_trial[0] > SPLIT_GAIN * best:
+            break
+        best, name = best_trial
         chunks[name] += 1
     tasks = []
     for name in filters:

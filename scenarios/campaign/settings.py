@@ -148,7 +148,6 @@ def validate_settings(cls: type, experiment: Any) -> None:
     declared length), its declared choices and range (``setting``, ``bounded``), and the
     filter step against the fine run (0 < filter_step <= fine_duration). A list for a
     tuple becomes a tuple. Raises the first ``config.SettingError``."""
-    import typing
     hints = cls.__dict__.get("_setting_types")
     if hints is None:
         try:
