@@ -24,6 +24,7 @@ CASES = {
     "usv-mems-swing": ("stukf", 1, {"fine_duration": 120.0}, 110.0, 4.0),   # 54, 1.8
     "usv-mems-swing-changing": ("stukf", 1, {"fine_duration": 540.0}, 60.0, 4.6),  # 27, 2.4
     "usv-mems-waves": ("stukf", 1, {"fine_duration": 120.0}, 35.0, 15.0),   # 17, 7.3
+    "usv-mems-waves-changing": ("stukf", 1, {"fine_duration": 540.0}, 18.0, 6.0),  # 8.3, 2.8
 }
 """The paper setups' files (``*-paper``) run their setup's own method: there the classic
 filter's trouble is the paper's point (paper 001's uncalibrated misalignment, paper 003's

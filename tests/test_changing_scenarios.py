@@ -18,7 +18,8 @@ from aligngym.scenarios.registry import scenario_names
 from aligngym.sensors.imu import ImuSpec
 
 CHANGING = ["figure8-gps-changing", "ship-sway-rotary-changing",
-            "static-large-azimuth-changing", "usv-mems-swing-changing"]
+            "static-large-azimuth-changing", "usv-mems-swing-changing",
+            "usv-mems-waves-changing"]
 
 
 def test_these_are_the_shipped_changing_scenarios():
@@ -138,3 +139,21 @@ def test_a_sensor_schedule_leaves_the_base_scenarios_truth_and_ideal_data(name, 
     for key, value in simulate(base, seed=2, ideal=True).arrays().items():
         if key != "scenario":                                     # the file's name
             np.testing.assert_array_equal(ideal[key], value, err_msg=key)
+
+
+def test_the_boat_in_waves_at_the_quay_is_the_boat_in_waves_with_a_sensor_schedule():
+    """usv-mems-waves-changing changes only its sensors (the quay's engine vibration and
+    multipath): its world, motion and truth are usv-mems-waves', bit for bit, so that
+    file's fidelity and ideal-data checks are this one's; the IMU's output differs only
+    from the vibration burst on (200 s)."""
+    from aligngym.scenarios.config import load_scenario
+    from aligngym.scenarios.simulate import simulate
+
+    runs = [simulate(load_scenario(name).with_options(duration=210.0), seed=3)
+            for name in ("usv-mems-waves", "usv-mems-waves-changing")]
+    for field in ("t", "q_b_n", "q_s_n", "lat", "h", "v_n"):
+        np.testing.assert_array_equal(getattr(runs[0].truth, field),
+                                      getattr(runs[1].truth, field))
+    quiet = runs[0].imu_t < 200.0
+    np.testing.assert_array_equal(runs[0].dtheta[quiet], runs[1].dtheta[quiet])
+    assert not np.array_equal(runs[0].dtheta[~quiet], runs[1].dtheta[~quiet])

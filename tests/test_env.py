@@ -38,6 +38,7 @@ QUICK = {SHIP_ID: SHIP_CONTRACT, "aligngym/ShipWavesRotary-v1": SHIP_CONTRACT,
          "aligngym/ShipSwayRotaryChanging-v1": SHIP_CONTRACT,
          "aligngym/Figure8GpsChanging-v1": VAN_CONTRACT,
          "aligngym/UsvMemsSwingChanging-v1": BOAT_CONTRACT,
+         "aligngym/UsvMemsWavesChanging-v1": BOAT_CONTRACT,
          "aligngym/StaticLargeAzimuthChanging-v1": {}}
 SEEDS = (123, 124)
 """The seeds of the rollouts, the vector envs (slots 123 and 124) and the pickled env: one
@@ -67,7 +68,8 @@ ADAPTIVE = {"aligngym/Figure8Gps-v1": "swakf", "aligngym/Figure8GpsPaper-v1": "s
             "aligngym/UsvMemsSwing-v1": "stukf",   # 004 has no adaptive filter
             "aligngym/UsvMemsWaves-v1": "stukf",
             "aligngym/Figure8GpsChanging-v1": "swakf",
-            "aligngym/UsvMemsSwingChanging-v1": "stukf"}
+            "aligngym/UsvMemsSwingChanging-v1": "stukf",
+            "aligngym/UsvMemsWavesChanging-v1": "stukf"}
 
 
 def rollout(env_id, seed, steps=12, **kwargs):
@@ -143,7 +145,7 @@ def _scene(env_id):
 
 # A *-paper file differs from its twin (figure8-gps, ship-sway-rotary) in its [imu] alone,
 # and a *-changing file whose schedule leaves the motion alone (figure8-gps,
-# static-large-azimuth, usv-mems-swing) in its sensors' schedule: the same world and
+# static-large-azimuth, usv-mems-swing, usv-mems-waves) in its sensors' schedule: the same world and
 # motion, so the same scene (bit for bit below the overlay's name); drawing it again tests
 # nothing new. Each distinct scene is drawn once (ship-sway-rotary-changing's 0.4x sway
 # is its own).

@@ -239,13 +239,16 @@ def start_worker(parent: int) -> None:
     (``ignore_interrupt``); the campaign locks it inherited closed (the parent's
     descriptor holds the lock); and, on Linux, a SIGTERM when the parent dies, so that a
     killed campaign (SIGKILL, out of memory) leaves no worker behind holding its
-    directory; its BLAS and OpenMP pools limited to one thread (the processes already
-    take the cores: two workers on two cores, each with two BLAS threads, prepared an
-    episode 2.5-3.5x slower than one process did). parent: the parent's pid (a worker
-    whose parent is already gone exits)."""
+    directory; its BLAS and OpenMP pools and MuJoCo's kinematic rollout limited to one
+    thread (the processes already take the cores: two workers on two cores, each with two
+    BLAS threads, prepared an episode 2.5-3.5x slower than one process did). parent: the
+    parent's pid (a worker whose parent is already gone exits)."""
     from threadpoolctl import threadpool_limits
+
+    from aligngym.models import world
     ignore_interrupt()
     threadpool_limits(1)
+    world.ROLLOUT_THREADS = 1          # the same states from any number of threads
     from aligngym.scenarios.campaign.manifest import _HELD
     for fd in _HELD.values():
         os.close(fd)
