@@ -290,9 +290,9 @@ class Cohort:
                  ) -> None:
         self.env, self.episodes = env, episodes
         experiment = env.experiment
-        self.filter = make_filter(env.estimator, **experiment.filter_options())
-        self.run = AlignmentRun(self.filter, experiment.model(
-            episodes, starts, filter_entry(env.estimator).model))
+        self.run = AlignmentRun(make_filter(env.estimator, **experiment.filter_options()),
+                                experiment.model(episodes, starts,
+                                                 filter_entry(env.estimator).model))
         self.observed = experiment.observed_states(self.run.model.layout)
         self.report: UpdateReport | None = None
         """The last epoch's update (``GaussianFilter.update``); None before the first."""

@@ -87,49 +87,36 @@ def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
                       epochs: int, processes: int) -> list[FilterTask]:
     """The tasks of a campaign's filter phase: each filter's batch of ``members`` in as
     many chunks as the processes allow and each chunk's work (``member_points``, at
-    least ``MIN_CHUNK_POINTS`` a chunk) justifies; then, while it shortens the phase (by
-    ``SPLIT_GAIN``) as the work estimate (``task_work``) schedules it (``makespan``:
-    largest tasks first), one filter's batch more split, never into more chunks than
-    processes, and below MIN_CHUNK_POINTS only where there are more tasks than processes
-    (paper 001: three filters of one task each on two processes, one of them split in
-    two). In filter order, chunks in member order."""
-    chunks, points = {}, {}
-    for name in filters:
-        points[name] = member_points(name, experiment)
-        chunks[name] = int(max(1, min(processes, members * points[name] // MIN_CHUNK_POINTS,
-                                      members)))
+    least ``MIN_CHUNK_POINTS`` a chunk) justifies; then, where there are more tasks than
+    processes, one filter's batch more split (below MIN_CHUNK_POINTS, never into more
+    chunks than processes) while that shortens the phase (by ``SPLIT_GAIN``) as the work
+    estimate (``task_work``) schedules it (``makespan``: largest tasks first). There a
+    split rebalances tasks a process would otherwise run one after another; with no more
+    tasks than processes the floor stands, keeping a chunk's fixed per-epoch cost under a
+    fifth of its work (paper 001: three filters of one task each on two processes, one of
+    them split in two). In filter order, chunks in member order."""
+    points = {name: member_points(name, experiment) for name in filters}
+    chunks = {name: int(max(1, min(processes, members * points[name] // MIN_CHUNK_POINTS,
+                                    members))) for name in filters}
 
-    def works(counts: dict[str, int]) -> list[float]:
-        return [task_work(points[n], index.size, epochs) for n in filters
-                for index in np.array_split(np.arange(members), counts[n])]
+    def tasks(counts: dict[str, int]) -> list[FilterTask]:
+        return [FilterTask(name, index, task_work(points[name], index.size, epochs))
+                for name in filters
+                for index in np.array_split(np.arange(members), counts[name])]
 
-    def splittable(name: str) -> bool:
-        """One more chunk for this filter: within the processes and the members, and
-        either its chunks keeping MIN_CHUNK_POINTS (the rule above) or more tasks than
-        processes. There a split rebalances tasks that a process would otherwise run one
-        after another; with no more tasks than processes, the floor keeps a chunk's fixed
-        per-epoch cost under a fifth of its work (CPU spent for little time saved)."""
-        more = chunks[name] + 1
-        return more <= min(processes, members) and (
-            members * points[name] // MIN_CHUNK_POINTS >= more
-            or sum(chunks.values()) > processes)
-
-    best = makespan(works(chunks), processes)
-    while processes > 1:
-        trials = [(makespan(works({**chunks, n: chunks[n] + 1}), processes), n)
-                  for n in filters if splittable(n)]
+    best = makespan([task.work for task in tasks(chunks)], processes)
+    while sum(chunks.values()) > processes:
+        trials = [(makespan([task.work for task in tasks({**chunks, name: chunks[name] + 1})],
+                            processes), name)
+                  for name in filters if chunks[name] < min(processes, members)]
         if not trials:
             break
-        best_trial = min(trials, key=lambda trial: trial[0])   # ties: the first filter
-        if best_trial[0] > SPLIT_GAIN * best:
+        trial, name = min(trials, key=lambda trial: trial[0])   # ties: the first filter
+        if trial > SPLIT_GAIN * best:
             break
-        best, name = best_trial
+        best = trial
         chunks[name] += 1
-    tasks = []
-    for name in filters:
-        for index in np.array_split(np.arange(members), chunks[name]):
-            tasks.append(FilterTask(name, index, task_work(points[name], index.size, epochs)))
-    return tasks
+    return tasks(chunks)
 
 
 def makespan(works: list[float], processes: int) -> float:
