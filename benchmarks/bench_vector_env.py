@@ -25,7 +25,8 @@ def steps_per_second(envs, steps: int, groups: int = 1) -> float:
     groups > 1: the slots end at different times: after the reset, group g's slots are
     reset again at step g (groups of num_envs / groups slots), so that the groups'
     episodes end and restart at different steps (same-step autoreset), as diverging
-    episodes make them; the native vector env runs one cohort per group."""
+    episodes make them; the native vector env keeps them in its one batched filter,
+    each group at its own epoch."""
     envs.reset(seed=0)
     actions = np.zeros(envs.action_space.shape, np.float32)
     n = envs.num_envs

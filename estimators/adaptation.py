@@ -45,7 +45,7 @@ class AdaptationContext:
     axes: np.ndarray | None = None
     motion: np.ndarray | None = None
     directions: np.ndarray | None = None
-    t: float = 0.0
+    t: float | np.ndarray = 0.0
 
 
 @dataclass(frozen=True)
@@ -99,6 +99,11 @@ class AdaptationPolicy(ABC):
 
     def reset(self, batch: int) -> None:
         """Start a new batch of episodes."""
+
+    def restart(self, members: np.ndarray) -> None:
+        """Start the episodes ``members`` (indices into the batch) again while the others
+        go on (the vector env's resets): their state as ``reset`` leaves it. A policy
+        with per-episode state overrides this (nothing to do for a stateless one)."""
 
     def tune(self, tuning: PolicyTuning) -> None:
         """Take an agent's retune (``PolicyTuning``) from this update on; ValueError for a

@@ -1,6 +1,11 @@
 """A fine alignment: one filter on one model for a batch of episodes, advanced one epoch
 at a time (a campaign runs all epochs; the gymnasium env steps it and may rescale the
-noise each epoch). Generic over models (``estimators.model.FilterModel``)."""
+noise each epoch). Generic over models (``estimators.model.FilterModel``).
+
+A campaign's episodes all start together. The vector env's run is ``staggered``: each
+episode has its own epoch, and ``restart`` replaces some episodes by new ones at epoch 0
+while the others go on, so that slots resetting at different steps still share one
+batched filter."""
 from __future__ import annotations
 
 import time
@@ -10,7 +15,8 @@ import numpy as np
 
 from aligngym.estimators.adaptation import PolicyTuning
 from aligngym.estimators.filters import GaussianFilter, UpdateReport
-from aligngym.estimators.model import FilterModel, Scale
+from aligngym.estimators.members import copy_members
+from aligngym.estimators.model import FilterModel, Scale, set_at_epoch
 
 
 @dataclass
@@ -47,9 +53,11 @@ class FineResult:
 
 
 class AlignmentRun:
-    """Filter ``filt`` on ``model`` (see the module docstring)."""
+    """Filter ``filt`` on ``model`` (see the module docstring); staggered: one epoch per
+    episode, ``k`` (B,) ints, else one for all, ``k`` an int."""
 
-    def __init__(self, filt: GaussianFilter, model: FilterModel) -> None:
+    def __init__(self, filt: GaussianFilter, model: FilterModel, staggered: bool = False
+                 ) -> None:
         self.filt, self.model = filt, model
         B, K, n = model.batch, model.epochs, model.layout.n
         self.batch, self.epochs = B, K
@@ -63,13 +71,14 @@ class AlignmentRun:
         self.factors: np.ndarray | None = None
         self.nis = np.full((B, K), np.nan)
         self.nis_dof = np.zeros((B, K), int)
-        self.k = 0
+        self.k = np.zeros(B, int) if staggered else 0
         self.compute_seconds = 0.0
         self._record()
 
     @property
     def done(self) -> bool:
-        return self.k >= self.epochs
+        """Every episode is at its last epoch (staggered: any, as none can go on)."""
+        return bool(np.any(self.k >= self.epochs))
 
     @property
     def t(self) -> np.ndarray:
@@ -82,9 +91,9 @@ class AlignmentRun:
 
     def _record(self) -> None:
         k, filt = self.k, self.filt
-        self.C_s_n[:, k] = self.model.attitude(k, filt.x)
-        self.P[:, k] = filt.P
-        self.sigma_n[:, k] = self.model.attitude_sigma(k, filt.P)
+        set_at_epoch(self.C_s_n, k, self.model.attitude(k, filt.x))
+        set_at_epoch(self.P, k, filt.P)
+        set_at_epoch(self.sigma_n, k, self.model.attitude_sigma(k, filt.P))
 
     def step(self, q_scale: tuple[Scale, Scale] = (1.0, 1.0), r_scale: Scale = 1.0,
              tuning: PolicyTuning | None = None) -> UpdateReport:
@@ -105,32 +114,58 @@ class AlignmentRun:
             grown = np.full((self.batch, self.epochs, width), np.nan)
             grown[..., : self.factors.shape[-1]] = self.factors
             self.factors = grown
-        self.factors[:, k] = np.nan
-        self.factors[:, k, :width] = report.factors
+        factors = np.full((self.batch, self.factors.shape[-1]), np.nan)
+        factors[:, :width] = report.factors
+        set_at_epoch(self.factors, k, factors)
         # the epoch an episode diverges at counts too (the report's NIS: live before)
-        self.nis[:, k] = report.nis
-        self.nis_dof[:, k] = report.nis_dof
+        set_at_epoch(self.nis, k, report.nis)
+        set_at_epoch(self.nis_dof, k, report.nis_dof)
         filt.x, filt.P = model.feedback(report.x, report.P, filt.live)   # the posterior
-        self.x[:, k + 1] = filt.x
-        self.k += 1
+        set_at_epoch(self.x, k + 1, filt.x)
+        self.k = k + 1
         self._record()
         self.compute_seconds += time.perf_counter() - start
         return report
 
-    def result(self) -> FineResult:
-        """The run so far (all epochs once done)."""
-        k, health = self.k, self.filt.health
-        factors = (self.factors[:, :k] if self.factors is not None
-                   else np.zeros((self.batch, 0, 0)))
-        return FineResult(t=self.t[: k + 1], C_s_n=self.C_s_n[:, : k + 1],
-                          P=self.P[:, : k + 1], sigma_n=self.sigma_n[:, : k + 1],
-                          x=self.x[:, : k + 1], factors=factors,
-                          diverged=health.diverged.copy(), diverged_time=health.time.copy(),
-                          diverged_reason=list(health.reason), repairs=health.repairs.copy(),
+    def result(self, members: np.ndarray | None = None) -> FineResult:
+        """The run so far (all epochs once done) of all episodes, or of ``members``
+        (indices into the batch; staggered: episodes at the same epoch)."""
+        b = slice(None) if members is None else np.asarray(members, int)
+        k = self.k if np.ndim(self.k) == 0 else self.k[b]
+        if np.ndim(k):
+            if len(k) and np.any(k != k[0]):
+                raise ValueError(f"result() of episodes at different epochs {k.tolist()}")
+            k = int(k[0]) if len(k) else 0
+        health = self.filt.health
+        factors = (self.factors[b, :k] if self.factors is not None
+                   else np.zeros((len(health.diverged[b]), 0, 0)))
+        return FineResult(t=self.t[: k + 1], C_s_n=self.C_s_n[b, : k + 1],
+                          P=self.P[b, : k + 1], sigma_n=self.sigma_n[b, : k + 1],
+                          x=self.x[b, : k + 1], factors=factors,
+                          diverged=health.diverged[b].copy(),
+                          diverged_time=health.time[b].copy(),
+                          diverged_reason=list(np.array(health.reason, object)[b]),
+                          repairs=health.repairs[b].copy(),
                           seconds_per_epoch=self.compute_seconds / max(k, 1),
-                          series={name: values[:, : k + 1]
+                          series={name: values[b, : k + 1]
                                   for name, values in self.model.series().items()},
-                          nis=self.nis[:, :k].copy(), nis_dof=self.nis_dof[:, :k].copy())
+                          nis=self.nis[b, :k].copy(), nis_dof=self.nis_dof[b, :k].copy())
+
+    def restart(self, members: np.ndarray, fresh: "AlignmentRun") -> None:
+        """Staggered: replace the episodes ``members`` (indices into the batch) by those of
+        ``fresh``, a new staggered run of the same filter and model kind on len(members)
+        episodes (at epoch 0); the others go on. Each episode's numbers are those of a
+        run of it alone."""
+        if np.ndim(self.k) == 0:
+            raise RuntimeError("restart() needs a staggered run")
+        members = np.asarray(members, int)
+        copy_members(self.model, fresh.model, members, skip=self.model.scratch)
+        self.filt.restart(members, fresh.filt)
+        for name in ("C_s_n", "P", "sigma_n", "x", "nis", "nis_dof"):
+            getattr(self, name)[members] = getattr(fresh, name)
+        if self.factors is not None:
+            self.factors[members] = 0.0
+        self.k[members] = 0
 
 
 def run_alignment(filt: GaussianFilter, model: FilterModel) -> FineResult:

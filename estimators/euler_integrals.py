@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.model import stack_episodes
+from aligngym.estimators.model import Epoch, at_epoch, stack_episodes
 from aligngym.estimators.strapdown import compensate
 from aligngym.models.attitude import (cross, dcm_to_quat, quat_cumprod, quat_mul, quat_rotate,
                                       quat_to_dcm, rotvec_to_quat)
@@ -157,23 +157,24 @@ class StaticBaseIntegrals:
     def batch(self) -> int:
         return self.Q.shape[0]
 
-    def earth_rotation(self, t: float) -> np.ndarray:
-        """E(t) (B, 3, 3)."""
+    def earth_rotation(self, t: float | np.ndarray) -> np.ndarray:
+        """E(t) (B, 3, 3) at t s: one time, or one per episode (B,)."""
+        t = np.asarray(t)[..., None, None]
         s, c = -np.sin(OMEGA_IE * t), 1.0 - np.cos(OMEGA_IE * t)
         K = self.K_axis
         return np.eye(3) + s * K + c * (K @ K)
 
-    def attitude(self, C0: np.ndarray, k: int) -> np.ndarray:
+    def attitude(self, C0: np.ndarray, k: Epoch) -> np.ndarray:
         """C_b^p (B, 3, 3) at boundary k of the INS started from C0 (B, 3, 3)."""
-        return self.earth_rotation(self.t[k]) @ C0 @ self.Q[:, k]
+        return self.earth_rotation(self.t[k]) @ C0 @ at_epoch(self.Q, k)
 
-    def attitude_mid(self, C0: np.ndarray, k: int) -> np.ndarray:
+    def attitude_mid(self, C0: np.ndarray, k: Epoch) -> np.ndarray:
         """C_b^p (B, 3, 3) at the middle of epoch k."""
-        return self.earth_rotation(self.t_mid[k]) @ C0 @ self.Q_mid[:, k]
+        return self.earth_rotation(self.t_mid[k]) @ C0 @ at_epoch(self.Q_mid, k)
 
-    def delta_v(self, C0: np.ndarray, k: int) -> np.ndarray:
+    def delta_v(self, C0: np.ndarray, k: Epoch) -> np.ndarray:
         """int C_b^p f~ dt over epoch k (B, 3), m/s, ENU (gravity not included)."""
-        K, U = self.K_axis, self.U[:, k]
+        K, U = self.K_axis, at_epoch(self.U, k)
         KC = K @ C0
         return (np.einsum("bij,bj->bi", C0, U[:, 0]) + np.einsum("bij,bj->bi", KC, U[:, 1])
                 + np.einsum("bij,bj->bi", K @ KC, U[:, 2]))

@@ -38,8 +38,8 @@ from aligngym.estimators.euler_integrals import StaticBaseIntegrals
 from aligngym.estimators.euler_kinematics import (ALPHA, DV, EPS, N_STATES, NABLA, C_omega_inv,
                                                   C_p_n, level_rotation, midpoint_jacobian,
                                                   midpoint_step, reset_jacobian)
-from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                                       per_member)
+from aligngym.estimators.model import (Epoch, FilterModel, Observation, StateLayout,
+                                       Transition, epoch_time, per_member)
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import deg, deg_per_h, mg
 
@@ -141,14 +141,14 @@ class EulerLargeMisalignmentModel(FilterModel):
                                 OMEGA_IE * np.sin(lat)], -1)          # (B, 3)
         self._x_lin = np.zeros((B, N_STATES))
         self._v = np.zeros((B, 3))       # the INS velocity, ENU, m/s (up: unused)
-        self._v_epoch = -1               # last epoch whose velocity is in _v
+        self._v_epoch = np.full(B, -1)   # each episode's last epoch whose velocity is in _v
         self.feedback_count = np.zeros(B, int)
 
     def initial(self):
         self._x_lin = np.zeros((self.batch, N_STATES))
         return self._x_lin.copy(), self._P0.copy()
 
-    def _args(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _args(self, k: Epoch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The epoch's mid-epoch C_b^p (B, 3, 3), mean f^p (B, 3), omega_ie^n (B, 3)."""
         f_p = self.integrals.delta_v(self.C0, k) / self.T
         return self.integrals.attitude_mid(self.C0, k), f_p, self._omega
@@ -180,14 +180,16 @@ class EulerLargeMisalignmentModel(FilterModel):
 
     def observation(self, k, r_scale=1.0):
         """The INS's horizontal velocity at boundary k+1 (advanced once per epoch)."""
-        if self._v_epoch != k:
-            if k != self._v_epoch + 1:
+        due = self._v_epoch != k
+        if due.any():
+            if np.any(due & (k != self._v_epoch + 1)):
                 raise ValueError(f"observation({k}) after observation({self._v_epoch}): "
                                  "epochs must be taken in order")
-            self._v = self._v + self.integrals.delta_v(self.C0, k)
-            self._v_epoch = k
+            self._v = np.where(due[:, None], self._v + self.integrals.delta_v(self.C0, k),
+                               self._v)
+            self._v_epoch = np.where(due, k, self._v_epoch)
         return Observation(noise=per_member(r_scale, self.batch) * self._R, matrix=self._Hb,
-                           z=self._v[:, :2].copy(), t=float(self.t[k + 1]))
+                           z=self._v[:, :2].copy(), t=epoch_time(self.t, k + 1))
 
     def feedback(self, x, P, live):
         """Keep x as the linearisation point of the process noise; with feedback_below,

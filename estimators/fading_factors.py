@@ -55,11 +55,19 @@ class InnovationFading(AdaptationPolicy):
         if not (floor > 0.0 and cap >= floor):
             raise ValueError(f"need 0 < floor <= cap, got floor={floor}, cap={cap}")
         self.rho, self.floor, self.cap = rho, floor, cap
+        self._cap = cap                  # as made: a retune may raise an episode's cap
         self._C: np.ndarray | None = None
 
     def reset(self, batch: int) -> None:
         self._C = None
         self._started = np.zeros(batch, bool)
+
+    def restart(self, members: np.ndarray) -> None:
+        self._started[members] = False
+        if self._C is not None:
+            self._C[members] = 0.0
+        if np.ndim(self.cap):
+            self.cap[members] = self._cap
 
     def innovation_covariance(self, innovation: np.ndarray,
                               valid: np.ndarray | None = None) -> np.ndarray:
@@ -131,6 +139,10 @@ class SingleFadingFactor(InnovationFading):
     def reset(self, batch: int) -> None:
         super().reset(batch)
         self._flagged_run = np.zeros(batch, int)
+
+    def restart(self, members: np.ndarray) -> None:
+        super().restart(members)
+        self._flagged_run[members] = 0
 
     def _outliers(self, ctx, valid: np.ndarray) -> np.ndarray:
         """(B,) bool: this epoch's innovation fails the chi-square test at

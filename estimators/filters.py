@@ -17,6 +17,7 @@ from aligngym.estimators.adaptation import (AdaptationContext, AdaptationPolicy,
                                             PolicyTuning)
 from aligngym.estimators.linalg import (floor_eigenvalues, identity_where_not,
                                         positive_definite, solve_each)
+from aligngym.estimators.members import copy_members
 from aligngym.estimators.model import Observation, Transition, wrap_angle
 from aligngym.estimators.rules import IntegrationRule, symmetric
 
@@ -37,9 +38,12 @@ class FilterHealth:
         return cls(np.zeros(batch, bool), np.full(batch, np.nan), [""] * batch,
                    np.zeros(batch, int))
 
-    def flag(self, mask: np.ndarray, t: float, reason: str) -> None:
+    def flag(self, mask: np.ndarray, t: float | np.ndarray, reason: str) -> None:
+        """Mark the episodes of mask (B,) diverged at t s (one time, or one per episode
+        (B,)) for reason, those not diverged already."""
         for b in np.flatnonzero(mask & ~self.diverged):
-            self.diverged[b], self.time[b], self.reason[b] = True, t, reason
+            self.diverged[b], self.reason[b] = True, reason
+            self.time[b] = t if np.ndim(t) == 0 else t[b]
 
 
 @dataclass(frozen=True)
@@ -126,6 +130,17 @@ class GaussianFilter:
         bad = ~positive_definite(self.P)
         self.health.flag(bad, 0.0, "initial covariance not positive definite")
 
+    def restart(self, members: np.ndarray, fresh: "GaussianFilter") -> None:
+        """Replace the episodes ``members`` (indices into the batch) by those of
+        ``fresh``, the same filter just reset for len(members) new episodes; the others
+        go on (the vector env's resets). Between epochs only."""
+        if self._pending is not None or fresh._pending is not None:
+            raise RuntimeError("restart() between a predict() and its update()")
+        members = np.asarray(members, int)
+        self.x[members], self.P[members] = fresh.x, fresh.P
+        copy_members(self.health, fresh.health, members, batch=self.x.shape[0])
+        self.adaptation.restart(members)
+
     @property
     def live(self) -> np.ndarray:
         """(B,) episodes not diverged."""
@@ -189,7 +204,7 @@ class GaussianFilter:
                             unadapted_valid=unadapted[2],
                             nis=nis, nis_dof=dof, factors=adjustment.factors)
 
-    def _predicted_covariance(self, P_pred: np.ndarray, t: float) -> np.ndarray:
+    def _predicted_covariance(self, P_pred: np.ndarray, t: float | np.ndarray) -> np.ndarray:
         """Phi P Phi^T + Q made symmetric, its non-finite episodes (or states) flagged."""
         P_pred = symmetric(P_pred)
         finite = np.all(np.isfinite(P_pred), axis=(-2, -1)) & np.all(np.isfinite(self.x), -1)
@@ -256,7 +271,7 @@ class GaussianFilter:
             P_zz = np.where(cross_valid, P_zz, 0.0)
         return None, np.swapaxes(P_xz, -1, -2), P_zz + R, R
 
-    def _gain(self, S: np.ndarray, HP: np.ndarray, t: float) -> np.ndarray:
+    def _gain(self, S: np.ndarray, HP: np.ndarray, t: float | np.ndarray) -> np.ndarray:
         """K = (S^-1 H P)^T (B, n, m); an episode whose S is not positive definite or is
         singular is flagged (and gets a zero gain)."""
         self.health.flag(~positive_definite(S), t, "innovation covariance not positive "
@@ -271,7 +286,7 @@ class GaussianFilter:
 
     def _correct(self, observation: Observation, K: np.ndarray, innovation: np.ndarray,
                  H: np.ndarray | None, R: np.ndarray, S: np.ndarray, P_pred: np.ndarray,
-                 t: float) -> None:
+                 t: float | np.ndarray) -> None:
         """x + K e and P (Joseph form for a linear measurement), kept for the live
         episodes whose P stays positive definite and x finite (the others flagged)."""
         x_new = self.x + np.einsum("bij,bj->bi", K, innovation)
@@ -290,7 +305,7 @@ class GaussianFilter:
         self.x = np.where(live[:, None], x_new, self.x)
         self.P = np.where(live[:, None, None], P_new, self.P)
 
-    def _repair(self, P_pred: np.ndarray, t: float) -> np.ndarray:
+    def _repair(self, P_pred: np.ndarray, t: float | np.ndarray) -> np.ndarray:
         """Floor the eigenvalues of a predicted covariance that a rule with negative
         weights left indefinite (ALGORITHMS 3.2 caution 1), counting each repair; a
         non-finite one is flagged. Other rules' covariances are left to the checks of

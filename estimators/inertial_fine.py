@@ -22,7 +22,8 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult, run_alignment
 from aligngym.estimators.filters import GaussianFilter
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                                       per_member, stack_episodes, whole_steps)
+                                       at_epoch, epoch_time, per_member, stack_episodes,
+                                       whole_steps)
 from aligngym.estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
 from aligngym.models.attitude import rotvec_to_dcm, skew
@@ -142,7 +143,7 @@ class InertialFineModel(FilterModel):
         self._H = np.broadcast_to(np.hstack([np.eye(3), np.zeros((3, 9))]), (B, 3, N_STATES))
         self._R_n = np.diag(np.square(tuning.measurement_sigma))
         self._Z_acc = np.zeros((B, 3))
-        self._Z_epoch = -1
+        self._Z_epoch = np.full(B, -1)   # each episode's last epoch in _Z_acc
 
     def initial(self):
         return (np.zeros((self.batch, N_STATES)),
@@ -152,9 +153,9 @@ class InertialFineModel(FilterModel):
         B, T, inputs = self.batch, self.tuning.step, self.inputs
         q_g = self.tuning.gyro_noise_density ** 2 * per_member(q_scale[0], B)
         q_a = self.tuning.accel_noise_density ** 2 * per_member(q_scale[1], B)
-        Psi_i = self.C_s0_i @ inputs.Psi[:, k]
-        Psi2_i = self.C_s0_i @ inputs.Psi2[:, k]
-        G = skew(self._g_mid[:, k])
+        Psi_i = self.C_s0_i @ at_epoch(inputs.Psi, k)
+        Psi2_i = self.C_s0_i @ at_epoch(inputs.Psi2, k)
+        G = skew(at_epoch(self._g_mid, k))
         Phi = np.zeros((B, N_STATES, N_STATES))
         Phi[:, np.arange(N_STATES), np.arange(N_STATES)] = 1.0
         Phi[:, V, PHI] = -G * T
@@ -169,18 +170,20 @@ class InertialFineModel(FilterModel):
         return Transition(noise=Q, matrix=Phi)
 
     def observation(self, k, r_scale=1.0):
-        if self._Z_epoch != k:  # accumulate the specific-force integral once per epoch
-            if k != self._Z_epoch + 1:
+        due = self._Z_epoch != k  # accumulate the specific-force integral once per epoch
+        if due.any():
+            if np.any(due & (k != self._Z_epoch + 1)):
                 raise ValueError(f"observation({k}) after observation({self._Z_epoch}): "
                                  "epochs must be taken in order")
-            self._Z_acc = self._Z_acc + np.einsum("bij,bj->bi", self.C_s0_i,
-                                                  self.inputs.dW[:, k])
-            self._Z_epoch = k
-        z = self._Z_acc - (self._V_grav[:, k + 1] - self._V_grav[:, 0])
+            dZ = np.einsum("bij,bj->bi", self.C_s0_i, at_epoch(self.inputs.dW, k))
+            self._Z_acc = np.where(due[:, None], self._Z_acc + dZ, self._Z_acc)
+            self._Z_epoch = np.where(due, k, self._Z_epoch)
+        z = self._Z_acc - (at_epoch(self._V_grav, k + 1) - self._V_grav[:, 0])
         r = per_member(r_scale, self.batch)
-        R = r * self._C_n_i[:, k + 1] @ self._R_n @ self._C_i_n[:, k + 1]
-        return Observation(noise=R, matrix=self._H, z=z, t=float(self.inputs.t[k + 1]),
-                           axes=self._C_i_n[:, k + 1])
+        C_i_n = at_epoch(self._C_i_n, k + 1)
+        R = r * at_epoch(self._C_n_i, k + 1) @ self._R_n @ C_i_n
+        return Observation(noise=R, matrix=self._H, z=z, t=epoch_time(self.inputs.t, k + 1),
+                           axes=C_i_n)
 
     def feedback(self, x, P, live):
         """The misalignment into this filter's C_s0^i (C_s0^i <- exp([phi x]) C_s0^i)."""
@@ -191,10 +194,10 @@ class InertialFineModel(FilterModel):
         return x, P
 
     def attitude(self, k, x):
-        return self._C_i_n[:, k] @ self.C_s0_i @ self.inputs.C_s_s0[:, k]
+        return at_epoch(self._C_i_n, k) @ self.C_s0_i @ at_epoch(self.inputs.C_s_s0, k)
 
     def attitude_sigma(self, k, P):
-        P_phi_n = self._C_i_n[:, k] @ P[:, PHI, PHI] @ self._C_n_i[:, k]
+        P_phi_n = at_epoch(self._C_i_n, k) @ P[:, PHI, PHI] @ at_epoch(self._C_n_i, k)
         return np.sqrt(np.maximum(np.diagonal(P_phi_n, axis1=-2, axis2=-1), 0.0))
 
 
@@ -275,5 +278,5 @@ class SwayAwareInertialModel(InertialFineModel):
         base = super().observation(k, r_scale)
         H = np.zeros((self.batch, 3, 18))
         H[:, :, :12] = base.matrix
-        H[:, :, SWAY] = self._C_n_i[:, k + 1] @ _PICK_V
+        H[:, :, SWAY] = at_epoch(self._C_n_i, k + 1) @ _PICK_V
         return Observation(noise=base.noise, matrix=H, z=base.z, t=base.t, axes=base.axes)

@@ -26,8 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                                       per_member, wrap_angle)
+from aligngym.estimators.model import (Epoch, FilterModel, Observation, StateLayout,
+                                       Transition, at_epoch, epoch_time, per_member,
+                                       set_at_epoch, wrap_angle)
 from aligngym.estimators.strapdown import AidedInsInputs, body_rate_at
 from aligngym.models.attitude import (cross, dcm_to_quat, quat_to_dcm, rotvec_to_dcm,
                                       skew)
@@ -169,7 +170,7 @@ class LooselyCoupledModel(FilterModel):
                         "gyro_bias": np.zeros((B, K + 1, 3)),
                         "accel_bias": np.zeros((B, K + 1, 3)),
                         "gps_difference": np.full((B, K + 1, 6), np.nan)}
-        self._k = 0
+        self._k = np.zeros(B, int)   # each episode's boundary after its last update
         self._store(0)
 
     # --- navigation solution ------------------------------------------------------------
@@ -193,26 +194,28 @@ class LooselyCoupledModel(FilterModel):
         return (np.einsum("bij,bj->bi", C_b_e, l_b),
                 np.einsum("bij,bj->bi", C_b_e, cross(w_eb, l_b)))
 
-    def _gps(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _gps(self, k: Epoch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """GPS antenna position and velocity in e and C_n^e at the fix, boundary k."""
         inp = self.inputs
-        C_ne = C_n_e(inp.gps_lat[:, k], inp.gps_lon[:, k])
-        r = geodetic_to_ecef(inp.gps_lat[:, k], inp.gps_lon[:, k], inp.gps_h[:, k])
-        return r, np.einsum("bij,bj->bi", C_ne, inp.gps_v_n[:, k]), C_ne
+        lat, lon = at_epoch(inp.gps_lat, k), at_epoch(inp.gps_lon, k)
+        C_ne = C_n_e(lat, lon)
+        r = geodetic_to_ecef(lat, lon, at_epoch(inp.gps_h, k))
+        return r, np.einsum("bij,bj->bi", C_ne, at_epoch(inp.gps_v_n, k)), C_ne
 
-    def _store(self, k: int) -> None:
+    def _store(self, k: Epoch) -> None:
         s, out = self.ins.state, self._series
-        out["lat"][:, k], out["lon"][:, k], out["h"][:, k] = s.lat, s.lon, s.h
-        out["v_n"][:, k] = s.v_n
+        for name, value in (("lat", s.lat), ("lon", s.lon), ("h", s.h), ("v_n", s.v_n),
+                            ("gyro_bias", self.ins.gyro_bias),
+                            ("accel_bias", self.ins.accel_bias)):
+            set_at_epoch(out[name], k, value)
         C_b_n, C_ne, C_b_e, r_e, v_e = self._navigation()
-        out["C_b_n"][:, k] = C_b_n
-        out["gyro_bias"][:, k], out["accel_bias"][:, k] = self.ins.gyro_bias, self.ins.accel_bias
+        set_at_epoch(out["C_b_n"], k, C_b_n)
         lever_r, lever_v = self._lever(C_b_e)
         r_g, v_g, _ = self._gps(k)
         C_en = np.swapaxes(C_ne, -1, -2)
-        out["gps_difference"][:, k] = np.concatenate([
+        set_at_epoch(out["gps_difference"], k, np.concatenate([
             np.einsum("bij,bj->bi", C_en, r_e + lever_r - r_g),
-            np.einsum("bij,bj->bi", C_en, v_e + lever_v - v_g)], -1)
+            np.einsum("bij,bj->bi", C_en, v_e + lever_v - v_g)], -1))
 
     def series(self) -> dict[str, np.ndarray]:
         return self._series
@@ -237,7 +240,8 @@ class LooselyCoupledModel(FilterModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         inp, dt = self.inputs, self.inputs.imu_dt
-        out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
+        out, dtheta, dv = self.ins.run_compensated(at_epoch(inp.dtheta, k),
+                                                   at_epoch(inp.dv, k))
         S = dtheta.shape[1]
         self._omega_ib_b = body_rate_at(dtheta, dt, [S])[:, 0]
         mid = S // 2
@@ -275,15 +279,16 @@ class LooselyCoupledModel(FilterModel):
         z = np.full((B, 7), np.nan)
         z[:, 0:3] = r_e + lever_r - r_g
         z[:, 3:6] = v_e + lever_v - v_g
-        speed_gps = np.hypot(inp.gps_v_n[:, k + 1, 0], inp.gps_v_n[:, k + 1, 1])
-        v_track = inp.gps_v_n[:, k + 1]
+        v_track = at_epoch(inp.gps_v_n, k + 1)
+        speed_gps = np.hypot(v_track[:, 0], v_track[:, 1])
+        heading_sigma = at_epoch(inp.gps_heading_sigma, k + 1)
         if any(tu.heading_offset_b):
             w_eb = self._w_eb(C_b_e)
             v_track = v_track + np.einsum("bji,bj->bi", C_ne_g, np.einsum(
                 "bij,bj->bi", C_b_e, cross(w_eb, np.asarray(tu.heading_offset_b))))
         psi_g = np.arctan2(v_track[:, 0], v_track[:, 1])
         use = (tu.use_heading & (speed_gps >= tu.heading_min_speed)
-               & np.isfinite(inp.gps_heading_sigma[:, k + 1]))
+               & np.isfinite(heading_sigma))
         z[:, HEADING] = np.where(use, wrap_angle(heading_cw(C_b_n) - psi_g), np.nan)
         H = np.zeros((B, 7, 15))
         H[:, 0:3, POSITION] = np.eye(3)
@@ -296,7 +301,7 @@ class LooselyCoupledModel(FilterModel):
         R_pos_n = np.diag([tu.gps_position_sigma_h ** 2] * 2 + [tu.gps_position_sigma_v ** 2])
         R[:, 0:3, 0:3] = C_ne @ R_pos_n @ C_en
         R[:, 3:6, 3:6] = np.eye(3) * tu.gps_velocity_sigma ** 2
-        heading_var = inp.gps_heading_sigma[:, k + 1] ** 2
+        heading_var = heading_sigma ** 2
         if tu.heading_sideslip_arm:
             w_z = self._w_eb(C_b_e)[:, 2]
             slip = tu.heading_sideslip_arm * np.abs(w_z) / np.maximum(
@@ -309,8 +314,8 @@ class LooselyCoupledModel(FilterModel):
         # where H's heading row has tan(pitch) terms.
         directions[:, HEADING, PHI] = C_en[:, 2]
         moving = np.hypot(self.ins.state.v_n[:, 0], self.ins.state.v_n[:, 1]) >= tu.motion_speed
-        return Observation(noise=R * per_member(r_scale, B), matrix=H, z=z, t=float(self.t[k + 1]),
-                           angles=(HEADING,), motion=moving, directions=directions)
+        return Observation(noise=R * per_member(r_scale, B), matrix=H, z=z,
+                           t=epoch_time(self.t, k + 1), angles=(HEADING,), motion=moving, directions=directions)
 
     def feedback(self, x, P, live):
         """Correct the INS with the estimate (live episodes), accumulate the bias
@@ -332,12 +337,14 @@ class LooselyCoupledModel(FilterModel):
         return np.where(live[:, None], 0.0, x), P
 
     def attitude(self, k, x):
-        C_b_n = self._series["C_b_n"][:, k]
-        C_en = np.swapaxes(C_n_e(self._series["lat"][:, k], self._series["lon"][:, k]), -1, -2)
+        C_b_n = at_epoch(self._series["C_b_n"], k)
+        C_en = np.swapaxes(C_n_e(at_epoch(self._series["lat"], k),
+                                 at_epoch(self._series["lon"], k)), -1, -2)
         phi_n = np.einsum("bij,bj->bi", C_en, x[:, PHI])
         return rotvec_to_dcm(phi_n) @ C_b_n
 
     def attitude_sigma(self, k, P):
-        C_en = np.swapaxes(C_n_e(self._series["lat"][:, k], self._series["lon"][:, k]), -1, -2)
+        C_en = np.swapaxes(C_n_e(at_epoch(self._series["lat"], k),
+                                 at_epoch(self._series["lon"], k)), -1, -2)
         P_n = C_en @ P[:, PHI, PHI] @ np.swapaxes(C_en, -1, -2)
         return np.sqrt(np.maximum(np.diagonal(P_n, axis1=-2, axis2=-1), 0.0))

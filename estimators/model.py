@@ -129,15 +129,16 @@ class Observation(GaussianMap):
     """One epoch's measurement z (B, m) = h(x) + v, v ~ N(0, R = noise).
 
     NaN components of z are missing: the update uses the others (none: no update).
-    t: time of the measurement, s. axes: optional (B, m, m) rotation from the
-    measurement axes to local East, North, Up (per-axis adaptation along E, N, U).
+    t: time of the measurement, s (one per episode, (B,), with per-episode epochs).
+    axes: optional (B, m, m) rotation from the measurement axes to local East, North, Up
+    (per-axis adaptation along E, N, U).
     motion: optional (B,) bool, the carrier is moving (policies that act only in motion).
     directions: optional (B, m, n), per measurement the unit direction in state space of
     the state it measures directly (zero row: none), for selective weights (001 eq. 15-20).
     """
 
     z: Array | None = None
-    t: float = 0.0
+    t: float | Array = 0.0
     axes: Array | None = None
     motion: Array | None = None
     directions: Array | None = None
@@ -156,6 +157,39 @@ def whole_steps(duration: float, step: float) -> int:
     data is not taken; 5 s in 0.3 s steps is 16), with a tolerance of 1e-9 of a step
     for float rounding (0.3 s in 0.1 s steps is 3, though 0.3 / 0.1 < 3)."""
     return int(np.floor(duration / step + 1e-9))
+
+
+Epoch = int | Array
+"""An epoch boundary index: one int for every episode of the batch (a campaign), or one
+per episode, (B,) ints (the vector env's episodes, each at its own epoch)."""
+
+
+def at_epoch(values: Array, k: Epoch) -> Array:
+    """values (B, K+1, ...) (or (1, K+1, ...), shared by the batch) at each episode's
+    epoch k (``Epoch``): (B, ...)."""
+    if np.ndim(k) == 0:
+        return values[:, k]
+    return values[0 if values.shape[0] == 1 else np.arange(len(k)), k]
+
+
+def set_at_epoch(values: Array, k: Epoch, new: Array) -> None:
+    """values (B, K+1, ...) at each episode's epoch k (``Epoch``) set to new (B, ...)."""
+    if np.ndim(k) == 0:
+        values[:, k] = new
+    else:
+        values[np.arange(len(k)), k] = new
+
+
+def epoch_of(k: Epoch, members: Array) -> Epoch:
+    """The epoch of the episodes ``members`` (indices into the batch): k itself for
+    one epoch for all, else k[members]."""
+    return k if np.ndim(k) == 0 else k[members]
+
+
+def epoch_time(t: Array, k: Epoch) -> float | Array:
+    """The time grid t (K+1,) s at boundary k: a float, or (B,) for one epoch per
+    episode."""
+    return float(t[k]) if np.ndim(k) == 0 else t[k]
 
 
 def per_member(scale: Scale, batch: int) -> Array:
@@ -180,6 +214,11 @@ class FilterModel:
     batch: int
     epochs: int
     t: Array
+    scratch: tuple[str, ...] = ()
+    """Attributes that hold values of the current epoch only (from its transition to
+    its observation): left alone when new episodes take over some of the batch's
+    (``estimators.members.copy_members``); every other attribute is per-episode state
+    or the same for every episode."""
 
     def initial(self) -> tuple[Array, Array]:
         """x0 (B, n) and P0 (B, n, n)."""

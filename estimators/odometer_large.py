@@ -26,7 +26,8 @@ import numpy as np
 
 from aligngym.estimators.euler_kinematics import C_p_n, reset_jacobian
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                                       per_member)
+                                       at_epoch, epoch_of, epoch_time, per_member,
+                                       set_at_epoch)
 from aligngym.estimators.strapdown import AidedInsInputs
 from aligngym.models.attitude import dcm_to_quat, quat_to_dcm, skew
 from aligngym.models.earth import (OMEGA_IE, earth_rate_n, metres_per_geodetic, radii,
@@ -195,6 +196,8 @@ class OdometerLargeHeadingModel(FilterModel):
     mounting estimates (B, K+1, ...), which with x give the sensor-error estimates, and
     v_n, the velocity estimate (INS less dv), m/s ENU."""
 
+    scratch = ("_increment", "_quantities", "_sideways")
+
     def __init__(self, inputs: OdometerInputs, tuning: OdometerTuning,
                  feedback_below: float | None = None) -> None:
         self.inputs, self.tuning, self.feedback_below = inputs, tuning, feedback_below
@@ -216,7 +219,7 @@ class OdometerLargeHeadingModel(FilterModel):
                         "v_n": np.zeros((B, K + 1, 3))}
         self._series["v_n"][:, 0] = self.ins.state.v_n
         self._increment = None
-        self._k = 0
+        self._k = np.zeros(B, int)   # each episode's boundary after its last update
 
     def series(self):
         return self._series
@@ -243,7 +246,8 @@ class OdometerLargeHeadingModel(FilterModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         inp, dt, T = self.inputs, self.inputs.imu_dt, self.T
-        out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
+        out, dtheta, dv = self.ins.run_compensated(at_epoch(inp.dtheta, k),
+                                                   at_epoch(inp.dv, k))
         S = dtheta.shape[1]
         C = quat_to_dcm(out["q_b_n"])                                  # (B, S+1, 3, 3)
         mid = S // 2
@@ -257,7 +261,7 @@ class OdometerLargeHeadingModel(FilterModel):
         v_n = out["v_n"]
         ins_displacement = 0.5 * dt * (v_n[:, 1:] + v_n[:, :-1]).sum(1)
         C_mid = 0.5 * (C[:, 1:] + C[:, :-1])
-        ds = inp.distance[:, k] * self.scale[:, None]                   # (B, S)
+        ds = at_epoch(inp.distance, k) * self.scale[:, None]                   # (B, S)
         # The odometer's axes in the IMU frame, with the mounting estimated so far.
         mount = np.stack([self.mount[:, 1], np.ones(self.batch), -self.mount[:, 0]], -1)
         forward = np.einsum("bij,bj->bi", inp.C_m_b, mount)
@@ -268,7 +272,7 @@ class OdometerLargeHeadingModel(FilterModel):
         lever = np.einsum("bij,bj->bi", C[:, -1] - C[:, 0], inp.lever_arm_b)
         self._increment = (ins_displacement, odometer + lever)
         self._quantities = quantities
-        self._C_b_n[:, k + 1] = C[:, -1]
+        set_at_epoch(self._C_b_n, k + 1, C[:, -1])
         n = self.n
         q = np.zeros((self.batch, n))
         q[:, PHI] = self.tuning.gyro_noise_density ** 2 * per_member(q_scale[0], self.batch)[:, 0]
@@ -315,7 +319,7 @@ class OdometerLargeHeadingModel(FilterModel):
         R = np.eye(3) * self.tuning.measurement_sigma ** 2 * per_member(r_scale, self.batch)
         speed = np.linalg.norm(odometer, axis=-1) / T
         return Observation(noise=R, fn=fn, conditional=conditional,
-                           nonlinear=HEADING, z=z, t=float(self.t[k + 1]),
+                           nonlinear=HEADING, z=z, t=epoch_time(self.t, k + 1),
                            motion=speed > 0.5)
 
     def feedback(self, x, P, live):
@@ -338,22 +342,22 @@ class OdometerLargeHeadingModel(FilterModel):
                 self.scale[b] *= 1.0 + x[b, KD]
                 if self.mounting:
                     self.mount[b] += x[b, MOUNT_PITCH:]
-                self._C_b_n[b, k] = C_b_n
+                self._C_b_n[b, epoch_of(k, b)] = C_b_n
                 J = np.broadcast_to(np.eye(self.n), (b.size, self.n, self.n)).copy()
                 J[:, PHI, PHI] = reset_jacobian(x[b, PHI])
                 P[b] = J @ P[b] @ np.swapaxes(J, -1, -2)
                 x[b] = 0.0
                 self.feedback_count[b] += 1
-        self._series["gyro_bias"][:, k] = self.ins.gyro_bias
-        self._series["accel_bias"][:, k] = self.ins.accel_bias
-        self._series["scale"][:, k] = self.scale
-        self._series["mounting"][:, k] = self.mount
-        self._series["v_n"][:, k] = self.ins.state.v_n - x[:, DV]     # the estimate
+        for name, value in (("gyro_bias", self.ins.gyro_bias),
+                            ("accel_bias", self.ins.accel_bias), ("scale", self.scale),
+                            ("mounting", self.mount),
+                            ("v_n", self.ins.state.v_n - x[:, DV])):     # v_n: the estimate
+            set_at_epoch(self._series[name], k, value)
         return x, P
 
     def attitude(self, k, x):
         """C_b^n = C_n'^n(phi^) C_b^n' (B, 3, 3) at boundary k."""
-        return C_p_n(x[:, PHI]) @ self._C_b_n[:, k]
+        return C_p_n(x[:, PHI]) @ at_epoch(self._C_b_n, k)
 
     def attitude_sigma(self, k, P):
         return np.sqrt(np.maximum(np.diagonal(P[:, PHI, PHI], axis1=-2, axis2=-1), 0.0))

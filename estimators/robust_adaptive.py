@@ -65,6 +65,10 @@ class _RobustObservations(AdaptationPolicy):
     def reset(self, batch: int) -> None:
         self._streak = None
 
+    def restart(self, members: np.ndarray) -> None:
+        if self._streak is not None:
+            self._streak[members] = 0
+
     def _acting(self, ctx: AdaptationContext) -> np.ndarray:
         return _moving(ctx) & ctx.valid.any(-1)
 

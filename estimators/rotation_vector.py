@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aligngym.estimators.model import FilterModel, Observation, Transition, per_member
+from aligngym.estimators.model import (Epoch, FilterModel, Observation, Transition, at_epoch,
+                                       epoch_of, epoch_time, per_member, set_at_epoch)
 from aligngym.estimators.loose_gps import GpsInsInputs
 from aligngym.estimators.rotation_vector_dynamics import (DP, DV, EPS, LAYOUT, N_STATES, NABLA,
                                                           PHI, InsQuantities,
@@ -84,7 +85,7 @@ class RotationVectorGnssModel(FilterModel):
         self._C_b_p = np.empty((B, K + 1, 3, 3))
         self._C_b_p[:, 0] = quat_to_dcm(self.ins.state.q_b_n)
         self._rate = np.zeros((B, 3))
-        self._k = 0
+        self._k = np.zeros(B, int)   # each episode's boundary after its last update
         self.feedback_count = np.zeros(B, int)
         self._bias = {name: np.zeros((B, K + 1, 3)) for name in ("gyro_bias", "accel_bias")}
 
@@ -93,12 +94,12 @@ class RotationVectorGnssModel(FilterModel):
         (B, K+1, 3) at the epoch boundaries after feedback (the state holds the rest)."""
         return self._bias
 
-    def _lever(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+    def _lever(self, k: Epoch) -> tuple[np.ndarray, np.ndarray]:
         """Lever arm l (B, 3) m in the IMU frame and the IMU's rate relative to the hull
         (B, 3) rad/s at epoch boundary k."""
         inp = self.inputs
         if isinstance(inp, IndexedGpsInsInputs):
-            return inp.lever_arm_b[:, k], inp.omega_bs_s[:, k]
+            return at_epoch(inp.lever_arm_b, k), at_epoch(inp.omega_bs_s, k)
         return inp.lever_arm_b, np.zeros((self.batch, 3))
 
     def initial(self):
@@ -120,11 +121,12 @@ class RotationVectorGnssModel(FilterModel):
 
     def transition(self, k, q_scale=(1.0, 1.0)):
         inp, dt, T = self.inputs, self.inputs.imu_dt, self.T
-        out, dtheta, dv = self.ins.run_compensated(inp.dtheta[:, k], inp.dv[:, k])
+        out, dtheta, dv = self.ins.run_compensated(at_epoch(inp.dtheta, k),
+                                                   at_epoch(inp.dv, k))
         S = dtheta.shape[1]
         mid = S // 2
         self._rate = body_rate_at(dtheta, dt, [S])[:, 0]
-        self._C_b_p[:, k + 1] = quat_to_dcm(out["q_b_n"][:, -1])
+        set_at_epoch(self._C_b_p, k + 1, quat_to_dcm(out["q_b_n"][:, -1]))
         f = dv / dt
         q0 = self._quantities(out, f[:, 0], 0)
         qm = self._quantities(out, 0.5 * (f[:, mid - 1] + f[:, mid]), mid)
@@ -157,7 +159,7 @@ class RotationVectorGnssModel(FilterModel):
         inp, tu = self.inputs, self.tuning
         self._k = k + 1
         s = self.ins.state
-        C_b_p = self._C_b_p[:, k + 1]
+        C_b_p = at_epoch(self._C_b_p, k + 1)
         l, w_bs = self._lever(k + 1)
         w_ie = earth_rate_n(s.lat)
         # the lever turns with the hull: w_nh = w_ns - w_hs, in IMU axes
@@ -168,9 +170,10 @@ class RotationVectorGnssModel(FilterModel):
         metres = metres_per_geodetic(s.lat, s.h)
         # z: INS antenna minus GNSS (ENU m/s, and m along E, N, U).
         z = np.full((self.batch, 6), np.nan)
-        z[:, :3] = s.v_n + lever_v - inp.gps_v_n[:, k + 1]
-        dp = np.stack([s.lon - inp.gps_lon[:, k + 1], s.lat - inp.gps_lat[:, k + 1],
-                       s.h - inp.gps_h[:, k + 1]], -1)
+        z[:, :3] = s.v_n + lever_v - at_epoch(inp.gps_v_n, k + 1)
+        dp = np.stack([s.lon - at_epoch(inp.gps_lon, k + 1),
+                       s.lat - at_epoch(inp.gps_lat, k + 1),
+                       s.h - at_epoch(inp.gps_h, k + 1)], -1)
         z[:, 3:] = dp * metres[:, [1, 0, 2]] + lever_p
         R = np.zeros((self.batch, 6, 6))
         R[:, :3, :3] = np.eye(3) * tu.gnss_velocity_sigma ** 2
@@ -188,7 +191,7 @@ class RotationVectorGnssModel(FilterModel):
             H[:, :3, DV] = np.eye(3)
             H[:, 3:, PHI] = skew(lever_p)
             H[:, 3:, DP] = D
-            return Observation(noise=R, matrix=H, z=z, t=float(self.t[k + 1]))
+            return Observation(noise=R, matrix=H, z=z, t=epoch_time(self.t, k + 1))
         Vb, Lv, Lp, Db = v_ins[:, None], lever_v[:, None], lever_p[:, None], D[:, None]
 
         def fn(x: np.ndarray) -> np.ndarray:
@@ -198,7 +201,7 @@ class RotationVectorGnssModel(FilterModel):
             return np.concatenate([dv + turn(Lv), np.einsum("...ij,...j->...i", Db,
                                                             x[..., DP]) + turn(Lp)], -1)
 
-        return Observation(noise=R, fn=fn, z=z, t=float(self.t[k + 1]))
+        return Observation(noise=R, fn=fn, z=z, t=epoch_time(self.t, k + 1))
 
     def feedback(self, x, P, live):
         """(6.8) for the episodes whose heading sigma is below feedback_below (all with
@@ -219,9 +222,9 @@ class RotationVectorGnssModel(FilterModel):
               else x[b, DV])
         if self.variant == "st-linear":     # (6.8)'s small-angle form
             dv = x[b, DV] + cross(s.v_n[b], x[b, PHI])
-        C_b_n = rotvec_to_dcm(x[b, PHI]) @ self._C_b_p[b, k]
+        C_b_n = rotvec_to_dcm(x[b, PHI]) @ self._C_b_p[b, epoch_of(k, b)]
         s.q_b_n[b] = dcm_to_quat(C_b_n)
-        self._C_b_p[b, k] = C_b_n
+        self._C_b_p[b, epoch_of(k, b)] = C_b_n
         s.v_n[b] -= dv
         s.lat[b] -= x[b, 6]
         s.lon[b] -= x[b, 7]
@@ -236,12 +239,12 @@ class RotationVectorGnssModel(FilterModel):
         self._record_bias(k)
         return x, P
 
-    def _record_bias(self, k: int) -> None:
-        self._bias["gyro_bias"][:, k] = self.ins.gyro_bias
-        self._bias["accel_bias"][:, k] = self.ins.accel_bias
+    def _record_bias(self, k: Epoch) -> None:
+        set_at_epoch(self._bias["gyro_bias"], k, self.ins.gyro_bias)
+        set_at_epoch(self._bias["accel_bias"], k, self.ins.accel_bias)
 
     def attitude(self, k, x):
-        return rotvec_to_dcm(x[:, PHI]) @ self._C_b_p[:, k]
+        return rotvec_to_dcm(x[:, PHI]) @ at_epoch(self._C_b_p, k)
 
     def attitude_sigma(self, k, P):
         return np.sqrt(np.maximum(np.diagonal(P[:, PHI, PHI], axis1=-2, axis2=-1), 0.0))

@@ -41,6 +41,11 @@ class SageHusaNoise(AdaptationPolicy):
     def reset(self, batch: int) -> None:
         self._ratio = self._count = None
 
+    def restart(self, members: np.ndarray) -> None:
+        if self._ratio is not None:
+            self._ratio[members] = 1.0
+            self._count[members] = 0
+
     def adapt(self, ctx: AdaptationContext) -> Adjustment:
         R = ctx.R
         r_model = np.diagonal(R, axis1=-2, axis2=-1)

@@ -145,16 +145,26 @@ class Strapdown:
             raise ValueError(f"dt must be > 0 s, got {dt}")
         self.state = state
         self.dt = float(dt)
-        self._dtheta_prev: np.ndarray | None = None
-        self._dv_prev: np.ndarray | None = None
+        # the previous call's last increments (B, 3); NaN: none yet (an episode's first)
+        self._dtheta_prev = np.full_like(state.v_n, np.nan)
+        self._dv_prev = np.full_like(state.v_n, np.nan)
         self._a_n = np.zeros_like(state.v_n)
+
+    def _previous(self, dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The increments before dtheta, dv (B, 3): the previous call's, or for an
+        episode that has none yet its first ones again."""
+        first = np.isnan(self._dtheta_prev[:, :1])
+        if not first.any():
+            return self._dtheta_prev, self._dv_prev
+        return (np.where(first, dtheta, self._dtheta_prev),
+                np.where(first, dv, self._dv_prev))
 
     def update(self, dtheta: np.ndarray, dv: np.ndarray) -> StrapdownState:
         """Advance one IMU interval with raw increments dtheta (B, 3) rad, dv (B, 3) m/s."""
-        if self._dtheta_prev is None:  # first interval: assume constant rate and force
-            self._dtheta_prev, self._dv_prev = dtheta, dv
-        phi = coning_rotation_vector(dtheta, self._dtheta_prev)
-        dv_b = body_velocity_increment(dtheta, dv, self._dtheta_prev, self._dv_prev)
+        # first interval: assume constant rate and force
+        dtheta_prev, dv_prev = self._previous(dtheta, dv)
+        phi = coning_rotation_vector(dtheta, dtheta_prev)
+        dv_b = body_velocity_increment(dtheta, dv, dtheta_prev, dv_prev)
         self._dtheta_prev, self._dv_prev = dtheta, dv
         return self.update_compensated(phi, dv_b)
 
@@ -163,9 +173,7 @@ class Strapdown:
         sculling compensated across the previous call's last increment; returns the
         trajectory at the M+1 boundaries (``run_strapdown``'s arrays, the first being
         the state before the call) and keeps the last state."""
-        first_prev = (dtheta[:, 0], dv[:, 0]) if self._dtheta_prev is None else \
-            (self._dtheta_prev, self._dv_prev)
-        phi, dv_b = compensate(dtheta, dv, *first_prev)
+        phi, dv_b = compensate(dtheta, dv, *self._previous(dtheta[:, 0], dv[:, 0]))
         self._dtheta_prev, self._dv_prev = dtheta[:, -1], dv[:, -1]
         out, self._a_n = _run(self.state, self._a_n, phi, dv_b, self.dt)
         self.state = StrapdownState(*(out[key][:, -1].copy() for key in

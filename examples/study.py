@@ -196,7 +196,7 @@ def cross_entropy(make, seeds: list[int], iterations: int, population: int,
     segment: a constant action) with the best mean training reward, by the
     cross-entropy method from initial (S, A; None: zeros, the filter as tuned). Each
     iteration runs the whole population at once: one batched run of population x
-    len(seeds) slots (a cohort's members are independent: the same numbers as one run
+    len(seeds) slots (the batch's episodes are independent: the same numbers as one run
     per candidate), the current mean as its first candidate. Returns the best candidate
     evaluated and the best training reward per iteration."""
     n = len(seeds)

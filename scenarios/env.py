@@ -129,7 +129,7 @@ class AlignmentEnv(EnvCore, gym.Env):
         lines = []
         t = 0.0
         if self._run is not None:
-            run, k = self._run, self._run.k
+            run, k = self._run, int(self._run.k[0])
             t = self.alignment_start_s + float(run.t[k] - run.t[0])
             error = self._attitude_error() / arcmin
             lines = [error_line(self.estimator, error)]

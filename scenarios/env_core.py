@@ -42,7 +42,7 @@ from aligngym.estimators.alignment import AlignmentRun
 from aligngym.estimators.catalogue import UnknownFilter, filter_entry, make_filter
 from aligngym.estimators.filters import UpdateReport
 from aligngym.estimators.metrics import misalignment
-from aligngym.estimators.model import whole_steps
+from aligngym.estimators.model import at_epoch, whole_steps
 from aligngym.models.units import arcmin
 from aligngym.scenarios.bank import SPLITS, EpisodeBank, check_seed_in_split, check_split
 from aligngym.scenarios.config import ConfigError, SettingError
@@ -282,58 +282,83 @@ class EnvCore:
 
 
 class Cohort:
-    """Episodes that started at the same step, run by one batched filter (B members):
-    the single env runs a cohort of one, the vector env one per group of slots that
-    reset together. Every member's numbers are those of a cohort of one."""
+    """The episodes of the env's slots, run by one batched filter (B members): the single
+    env's one, the vector env's num_envs. The run is staggered (each member at its own
+    epoch): ``restart`` begins new episodes in some members while the others go on, so
+    slots that reset at different steps still share the filter. Every member's numbers
+    are those of a cohort of one."""
 
     def __init__(self, env: EnvCore, episodes: list[PreparedEpisode], starts: np.ndarray
                  ) -> None:
-        self.env, self.episodes = env, episodes
-        experiment = env.experiment
-        self.run = AlignmentRun(make_filter(env.estimator, **experiment.filter_options()),
-                                experiment.model(episodes, starts,
-                                                 filter_entry(env.estimator).model))
-        self.observed = experiment.observed_states(self.run.model.layout)
+        self.env, self.episodes = env, list(episodes)
+        self.run = self._run(self.episodes, starts)
+        self.observed = env.experiment.observed_states(self.run.model.layout)
         self.report: UpdateReport | None = None
         """The last epoch's update (``GaussianFilter.update``); None before the first."""
+        self.reported = np.zeros(self.run.batch, bool)
+        """Members whose episode has had an update (the report's rows are theirs)."""
         self.ended = np.zeros(self.run.batch, bool)
         """Members whose episode has ended (their metrics given once)."""
         self.steps = env.episode_steps
         """Steps after which the members are truncated (``episode_step_count``)."""
         if self.run.epochs < self.steps:       # the prepared data hold fewer epochs
+            experiment = env.experiment
             raise ConfigError(f"the episodes hold {self.run.epochs} epochs of "
                               f"epoch_length = {experiment.filter_step:g} s, fewer than the "
                               f"{self.steps} steps of episode_length = "
                               f"{experiment.fine_duration:g} s")
 
+    def _run(self, episodes: list[PreparedEpisode], starts: np.ndarray) -> AlignmentRun:
+        experiment, estimator = self.env.experiment, self.env.estimator
+        return AlignmentRun(make_filter(estimator, **experiment.filter_options()),
+                            experiment.model(episodes, starts, filter_entry(estimator).model),
+                            staggered=True)
+
+    def restart(self, members: list[int], episodes: list[PreparedEpisode],
+                starts: np.ndarray) -> None:
+        """New episodes (with their start errors (M, 3) rad) in the members (indices)."""
+        self.run.restart(np.asarray(members, int), self._run(episodes, starts))
+        for b, episode in zip(members, episodes):
+            self.episodes[b] = episode
+        self.reported[members] = False
+        self.ended[members] = False
+
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                  np.ndarray, list[dict]]:
         """One filter epoch with each member's action (B, A), clipped already. Returns
-        observations (B, OBS_SIZE), rewards, terminated, truncated (B,) and the infos."""
+        observations (B, OBS_SIZE), rewards, terminated, truncated (B,) and the infos.
+        A member whose episode has ended (waiting for its reset) goes through its last
+        epoch again, its outputs meaningless, until ``restart``."""
         env, run = self.env, self.run
+        if self.ended.any():
+            run.k = np.where(self.ended, np.minimum(run.k, run.epochs - 1), run.k)
         tuning = PolicyTuning(floor=10.0 ** actions[:, 3]) if env._fading else None
         mis = env._mistuning
         self.report = run.step(q_scale=(mis["gyro_noise"] * 10.0 ** (2 * actions[:, 0]),
                                         mis["accel_noise"] * 10.0 ** (2 * actions[:, 1])),
                                r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]),
                                tuning=tuning)
+        self.reported[:] = True
         errors = self.attitude_errors()
         diverged = run.diverged
         terminated = diverged
-        truncated = np.full(run.batch, run.k >= self.steps) & ~diverged
+        truncated = (run.k >= self.steps) & ~diverged
         over = (terminated | truncated) & ~self.ended     # ending at this step
         rewards = env.rewards(errors, terminated | truncated, terminated & over,
                               self.steps - run.k)
         self.ended |= over
-        time_s = float(run.t[run.k] - run.t[0])
-        infos = [{"error_arcmin": errors[b] / arcmin, "time_s": time_s,
+        time_s = run.t[run.k] - run.t[0]
+        infos = [{"error_arcmin": errors[b] / arcmin, "time_s": float(time_s[b]),
                   "diverged": bool(diverged[b])} for b in range(run.batch)]
-        if over.any():
-            analysed = campaign.analyse_run(env.estimator, "env", run.result(),
-                                            self.episodes, env.experiment)
-            for b in np.flatnonzero(over):
+        ending = np.flatnonzero(over)
+        for k in np.unique(run.k[ending]):      # the members ending together, analysed once
+            members = ending[run.k[ending] == k]
+            episodes = [self.episodes[b] for b in members]
+            analysed = campaign.analyse_run(env.estimator, "env", run.result(members),
+                                            episodes, env.experiment)
+            for i, b in enumerate(members):
                 infos[b]["metrics"] = campaign.episode_metrics(
-                    analysed, int(b), env.experiment, self.episodes[b].fine_start)
+                    analysed, i, env.experiment, episodes[i].fine_start)
         return self.observations(), rewards, terminated, truncated, infos
 
     def observations(self) -> np.ndarray:
@@ -343,29 +368,31 @@ class Cohort:
         obs = np.zeros((run.batch, OBS_SIZE))
         first = INNOVATIONS.start
         report = self.report
-        if report is not None:
+        if report is not None and self.reported.any():
             with np.errstate(divide="ignore", invalid="ignore"):
                 e = report.innovation / np.sqrt(np.diagonal(report.S, axis1=-2, axis2=-1))
             m = min(e.shape[-1], INNOVATIONS.stop - first)
-            obs[:, first:first + m] = np.where(report.valid, e, 0.0)[:, :m]
+            used = report.valid & self.reported[:, None]
+            obs[:, first:first + m] = np.where(used, e, 0.0)[:, :m]
         sub = self.observed
-        diag = np.diagonal(run.P[:, run.k], axis1=-2, axis2=-1)[:, sub]   # after the feedback
+        k = run.k
+        diag = np.diagonal(at_epoch(run.P, k), axis1=-2, axis2=-1)[:, sub]  # after feedback
         diag0 = np.diagonal(run.P[:, 0], axis1=-2, axis2=-1)[:, sub]
         first = COVARIANCE.start
         with np.errstate(divide="ignore"):
             obs[:, first:first + sub.size] = np.log10(np.maximum(diag, 1e-300) / diag0)
-        if run.k > 0 and run.factors is not None and run.factors.shape[-1]:
-            for b in range(run.batch):
-                f = run.factors[b, run.k - 1]
+        if run.factors is not None and run.factors.shape[-1]:
+            for b in np.flatnonzero(k > 0):
+                f = run.factors[b, k[b] - 1]
                 f = f[np.isfinite(f)]
                 if f.size > 3:      # more than three (001's weights): the smallest three
                     f = np.sort(f)[:3]
                 obs[b, FACTORS.start:FACTORS.start + f.size] = np.log10(np.maximum(f, 1e-3))
-        obs[:, ELAPSED] = run.k / self.steps
+        obs[:, ELAPSED] = k / self.steps
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def attitude_errors(self) -> np.ndarray:
-        """Each member's attitude error E, N, U (B, 3) rad at the current epoch."""
+        """Each member's attitude error E, N, U (B, 3) rad at its current epoch."""
         k = self.run.k
-        C_true = np.stack([e.C_s_n_true[k] for e in self.episodes])
-        return misalignment(C_true, self.run.C_s_n[:, k])
+        C_true = np.stack([e.C_s_n_true[k[b]] for b, e in enumerate(self.episodes)])
+        return misalignment(C_true, at_epoch(self.run.C_s_n, k))

@@ -2,8 +2,10 @@
 process (``gym.make_vec(ENV_ID, num_envs=N)``; ``vectorization_mode="vector_entry_point"``
 is the default for the aligngym ids).
 
-Slots that reset at the same step form a cohort, run by one batched filter; with a fixed
-episode length and no divergence all N slots stay one cohort. Every slot's observations,
+All N slots share one batched filter (``env_core.Cohort``), whenever they reset: each
+slot's episode has its own epoch, and a slot that resets begins its new episode in the
+filter while the others go on (a divergence or a reset_mask leaves the slots ending at
+different steps without splitting the batch). Every slot's observations,
 rewards, ends and infos are those of N single envs (``scenarios.env.AlignmentEnv``) in a
 ``SyncVectorEnv`` with the same seeds, bit for bit: a slot's episode seed is drawn from
 its own generator (seeded with seed + i by ``reset(seed=seed)``), its reset options are
@@ -64,7 +66,7 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
-        self._member: list[tuple[Cohort, int] | None] = [None] * self.num_envs
+        self._cohort: Cohort | None = None     # slot i is the cohort's member i
         self._episode_seeds = np.full(self.num_envs, -1)
         self._obs = np.zeros((self.num_envs, *self.single_observation_space.shape),
                              np.float32)
@@ -73,8 +75,8 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
     # --- slots ----------------------------------------------------------------------------
     def _start(self, slots: list[int], seeds: list[int | None], options: dict,
                episode_seeds: list | None = None) -> list[dict]:
-        """Begin a new episode in each slot (one cohort for all of them; episode_seeds:
-        one per slot, else the options'); their infos."""
+        """Begin a new episode in each slot (episode_seeds: one per slot, else the
+        options'), in the shared filter; their infos."""
         begun = []
         for n, (i, seed) in enumerate(zip(slots, seeds)):
             if seed is not None or self._rngs[i] is None:
@@ -82,14 +84,17 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
             own = options if episode_seeds is None else {**options,
                                                           "episode_seed": episode_seeds[n]}
             begun.append(self._begin(own, self._rngs[i]))
-        cohort = Cohort(self, [episode for _, episode, _ in begun],
-                        np.stack([start for _, _, start in begun]))
-        obs = cohort.observations()
+        episodes = [episode for _, episode, _ in begun]
+        starts = np.stack([start for _, _, start in begun])
+        if self._cohort is None or len(slots) == self.num_envs:
+            self._cohort = Cohort(self, episodes, starts)
+        else:
+            self._cohort.restart(slots, episodes, starts)
+        obs = self._cohort.observations()
         infos = []
-        for b, (i, (episode_seed, _, start)) in enumerate(zip(slots, begun)):
-            self._member[i] = (cohort, b)
+        for i, (episode_seed, _, start) in zip(slots, begun):
             self._episode_seeds[i] = episode_seed
-            self._obs[i] = obs[b]
+            self._obs[i] = obs[i]
             self._autoreset[i] = False
             infos.append({"episode_seed": episode_seed, "start_error_arcmin": start / arcmin})
         return infos
@@ -143,7 +148,7 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
     def step(self, actions):
         """One filter epoch per slot (actions (num_envs, A), clipped to [-1, 1]); slots
         ended at the previous step are reset instead in "next-step" mode."""
-        if any(member is None for member in self._member):
+        if self._cohort is None:
             raise RuntimeError("call reset() before step()")
         actions = self._checked_actions(actions, (self.num_envs,))
         rewards = np.zeros(self.num_envs)
@@ -154,23 +159,19 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         if resetting and self.autoreset_mode == AutoresetMode.DISABLED:
             raise RuntimeError(f"slots {resetting} ended: reset them (reset_mask) before "
                                "step() in autoreset_mode 'disabled'")
+        stepping = [i for i in range(self.num_envs) if i not in resetting]
+        if stepping:
+            # next-step mode: the ended slots go through the step with the zero action
+            # (``Cohort.step``), then begin their new episodes
+            members = np.where(self._autoreset[:, None], 0.0, actions)
+            obs, reward, term, trunc, infos = self._cohort.step(members)
+            for i in stepping:
+                self._obs[i], rewards[i], terminated[i], truncated[i] = (
+                    obs[i], reward[i], term[i], trunc[i])
+                slot_infos[i] = infos[i]
         if self.autoreset_mode == AutoresetMode.NEXT_STEP and resetting:
             for i, info in zip(resetting, self._start(resetting, [None] * len(resetting), {})):
                 slot_infos[i] = info
-        stepping = [i for i in range(self.num_envs) if i not in resetting]
-        cohorts: dict[int, tuple[Cohort, list[int]]] = {}
-        for i in stepping:
-            cohort, _ = self._member[i]
-            cohorts.setdefault(id(cohort), (cohort, []))[1].append(i)
-        for cohort, slots in cohorts.values():
-            members = np.zeros((cohort.run.batch, actions.shape[1]))
-            index = [self._member[i][1] for i in slots]
-            members[index] = actions[slots]       # members whose slot left: the zero action
-            obs, reward, term, trunc, infos = cohort.step(members)
-            for i, b in zip(slots, index):
-                self._obs[i], rewards[i], terminated[i], truncated[i] = (
-                    obs[b], reward[b], term[b], trunc[b])
-                slot_infos[i] = infos[b]
         ended = [i for i in stepping if terminated[i] or truncated[i]]
         if self.autoreset_mode == AutoresetMode.SAME_STEP and ended:
             finals = {i: {"final_obs": self._obs[i].copy(), "final_info": slot_infos[i]}
@@ -195,4 +196,4 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         return self._episode_seeds.copy()
 
     def close_extras(self, **kwargs) -> None:
-        self._member = [None] * self.num_envs
+        self._cohort = None
