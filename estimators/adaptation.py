@@ -31,7 +31,7 @@ class AdaptationContext:
     Q (B, n, n); R (B, m, m); H (B, m, n); axes (B, m, m) rotation of the measurement
     axes to E, N, U or None; motion (B,) bool or None; directions (B, m, n) the state
     direction each measurement measures directly (``Observation.directions``) or None;
-    t (s).
+    t (s; one per episode (B,) with per-episode epochs).
     """
 
     innovation: np.ndarray
@@ -102,8 +102,12 @@ class AdaptationPolicy(ABC):
 
     def restart(self, members: np.ndarray) -> None:
         """Start the episodes ``members`` (indices into the batch) again while the others
-        go on (the vector env's resets): their state as ``reset`` leaves it. A policy
-        with per-episode state overrides this (nothing to do for a stateless one)."""
+        go on (the vector env's slots that reset alone): their state as ``reset`` leaves
+        it. Every policy says how (a stateless one: nothing to do)."""
+        raise NotImplementedError(
+            f"adaptation {self.name!r} ({type(self).__name__}) has no restart(members): "
+            "the vector env's slots that reset alone need it (a stateless policy: "
+            "def restart(self, members): pass)")
 
     def tune(self, tuning: PolicyTuning) -> None:
         """Take an agent's retune (``PolicyTuning``) from this update on; ValueError for a
@@ -117,6 +121,9 @@ class AdaptationPolicy(ABC):
 
 class NoAdaptation(AdaptationPolicy):
     """The conventional Kalman filter: P_pred = Phi P Phi^T + Q, R as modelled."""
+
+    def restart(self, members: np.ndarray) -> None:
+        """Stateless: nothing to restart."""
 
     def adapt(self, ctx):
         return Adjustment(None, None, np.zeros((ctx.PhiPPhi.shape[0], 0)))

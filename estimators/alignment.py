@@ -73,11 +73,14 @@ class AlignmentRun:
         self.nis_dof = np.zeros((B, K), int)
         self.k = np.zeros(B, int) if staggered else 0
         self.compute_seconds = 0.0
+        self.member_seconds = np.zeros(B) if staggered else None
+        """Staggered: each episode's share of the step times since it began, s."""
         self._record()
 
     @property
     def done(self) -> bool:
-        """Every episode is at its last epoch (staggered: any, as none can go on)."""
+        """Every episode is at its last epoch (staggered: any, as the batched step cannot
+        go on)."""
         return bool(np.any(self.k >= self.epochs))
 
     @property
@@ -124,7 +127,10 @@ class AlignmentRun:
         set_at_epoch(self.x, k + 1, filt.x)
         self.k = k + 1
         self._record()
-        self.compute_seconds += time.perf_counter() - start
+        elapsed = time.perf_counter() - start
+        self.compute_seconds += elapsed
+        if self.member_seconds is not None:
+            self.member_seconds += elapsed / self.batch
         return report
 
     def result(self, members: np.ndarray | None = None) -> FineResult:
@@ -146,7 +152,9 @@ class AlignmentRun:
                           diverged_time=health.time[b].copy(),
                           diverged_reason=list(np.array(health.reason, object)[b]),
                           repairs=health.repairs[b].copy(),
-                          seconds_per_epoch=self.compute_seconds / max(k, 1),
+                          seconds_per_epoch=(self.compute_seconds if self.member_seconds
+                                             is None else self.member_seconds[b].sum())
+                          / max(k, 1),
                           series={name: values[b, : k + 1]
                                   for name, values in self.model.series().items()},
                           nis=self.nis[b, :k].copy(), nis_dof=self.nis_dof[b, :k].copy())
@@ -166,6 +174,7 @@ class AlignmentRun:
         if self.factors is not None:
             self.factors[members] = 0.0
         self.k[members] = 0
+        self.member_seconds[members] = 0.0
 
 
 def run_alignment(filt: GaussianFilter, model: FilterModel) -> FineResult:

@@ -79,6 +79,11 @@ def copy_members(target, fresh, members, batch: int | None = None,
     members = np.asarray(members, int)
     batch = target.batch if batch is None else batch
     path = type(target).__name__ if path is None else path
+    missing = (set(vars(target)) ^ set(vars(fresh))) - set(skip)
+    if missing:
+        raise MemberStateError(f"{path}.{sorted(missing)[0]}: set on one object only (state "
+                               "made after the episodes began), so a new episode cannot "
+                               "take it over; declare it scratch if it lives one epoch")
     for name, new in vars(fresh).items():
         if name in skip or name == "batch":
             continue

@@ -166,7 +166,7 @@ per episode, (B,) ints (the vector env's episodes, each at its own epoch)."""
 
 def at_epoch(values: Array, k: Epoch) -> Array:
     """values (B, K+1, ...) (or (1, K+1, ...), shared by the batch) at each episode's
-    epoch k (``Epoch``): (B, ...)."""
+    epoch k (``Epoch``): (B, ...) (for shared values and one k: (1, ...))."""
     if np.ndim(k) == 0:
         return values[:, k]
     return values[0 if values.shape[0] == 1 else np.arange(len(k)), k]

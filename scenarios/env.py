@@ -15,7 +15,7 @@ import numpy as np
 from aligngym.estimators.alignment import AlignmentRun
 from aligngym.models.units import arcmin
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.env_core import Cohort, EnvCore
+from aligngym.scenarios.env_core import EnvCore, EnvRun
 
 
 class AlignmentEnv(EnvCore, gym.Env):
@@ -58,7 +58,7 @@ class AlignmentEnv(EnvCore, gym.Env):
         self.observation_space = self.single_observation_space
         self._render_size = render_size
         self._scene = None
-        self._cohort: Cohort | None = None
+        self._slots: EnvRun | None = None
         self._run: AlignmentRun | None = None
         self._over = False
         self._frames: list[np.ndarray] = []
@@ -71,14 +71,14 @@ class AlignmentEnv(EnvCore, gym.Env):
         options = self._check_options(options)
         super().reset(seed=seed)
         episode_seed, self._episode, self._start_error = self._begin(options, self.np_random)
-        self._cohort = Cohort(self, [self._episode], self._start_error[None])
-        self._run = self._cohort.run
+        self._slots = EnvRun(self, [self._episode], self._start_error[None])
+        self._run = self._slots.run
         self._episode_seed = episode_seed
         self._over = False
         self._frames = []
         if self.render_mode == "rgb_array" and self.video_path:
             self._frames.append(self.render())
-        return self._cohort.observations()[0], {
+        return self._slots.observations()[0], {
             "episode_seed": episode_seed, "start_error_arcmin": self._start_error / arcmin}
 
     def step(self, action):
@@ -92,7 +92,7 @@ class AlignmentEnv(EnvCore, gym.Env):
         if self._over:
             raise RuntimeError("the episode is over; call reset() before step()")
         a = self._checked_actions(action, ())
-        obs, reward, terminated, truncated, infos = self._cohort.step(a[None])
+        obs, reward, terminated, truncated, infos = self._slots.step(a[None])
         terminated, truncated = bool(terminated[0]), bool(truncated[0])
         self._over = terminated or truncated
         if self.render_mode == "rgb_array" and self.video_path:
@@ -103,7 +103,7 @@ class AlignmentEnv(EnvCore, gym.Env):
 
     def _attitude_error(self) -> np.ndarray:
         """The estimator's attitude error E, N, U (3,) rad at the current epoch."""
-        return self._cohort.attitude_errors()[0]
+        return self._slots.attitude_errors()[0]
 
     @property
     def alignment_start_s(self) -> float:

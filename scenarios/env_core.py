@@ -1,8 +1,8 @@
 """What the single env (``scenarios.env``) and the vector env (``scenarios.vector_env``)
 share: the observation, action and reward definitions, the env core (``EnvCore``: the
 experiment, the spaces, the mistuning, the episode cache and bank, the seed split, the
-reset options, the reward) and the batched filter run of episodes that started together
-(``Cohort``: its step and its observations).
+reset options, the reward) and the batched filter run of the slots' episodes, each at its
+own epoch (``EnvRun``: its step, its restarts and its observations).
 
 Observation (float32, 20): the normalised innovations e_i / sqrt(S_ii), all of the
 measurement (``INNOVATIONS``, 7 slots: 001's position, velocity and GPS heading, 004's
@@ -246,11 +246,11 @@ class EnvCore:
         return episode_seed, episode, start
 
     def rewards(self, errors: np.ndarray, over: np.ndarray, diverged: np.ndarray,
-                remaining: int) -> np.ndarray:
+                remaining: np.ndarray) -> np.ndarray:
         """The reward (see the module docstring) of attitude errors (B, 3) rad; over (B,):
         the episodes that end at this step; diverged (B,): those ending by divergence,
-        which are charged the worst reward for each of the remaining epochs (so that
-        ending early never pays)."""
+        which are charged the worst reward for each of their remaining epochs (B,) (so
+        that ending early never pays)."""
         e = np.linalg.norm(errors / REWARD_SCALE, axis=-1)
         if self.reward == "log":
             worst, reward = -np.log10(1.0 + REWARD_CAP), -np.log10(1.0 + e)
@@ -281,12 +281,12 @@ class EnvCore:
         return np.clip(a, -1.0, 1.0)
 
 
-class Cohort:
+class EnvRun:
     """The episodes of the env's slots, run by one batched filter (B members): the single
     env's one, the vector env's num_envs. The run is staggered (each member at its own
     epoch): ``restart`` begins new episodes in some members while the others go on, so
     slots that reset at different steps still share the filter. Every member's numbers
-    are those of a cohort of one."""
+    are those of a run of its episode alone."""
 
     def __init__(self, env: EnvCore, episodes: list[PreparedEpisode], starts: np.ndarray
                  ) -> None:
@@ -327,8 +327,9 @@ class Cohort:
                                                  np.ndarray, list[dict]]:
         """One filter epoch with each member's action (B, A), clipped already. Returns
         observations (B, OBS_SIZE), rewards, terminated, truncated (B,) and the infos.
-        A member whose episode has ended (waiting for its reset) goes through its last
-        epoch again, its outputs meaningless, until ``restart``."""
+        A member whose episode has ended (waiting for its reset) goes on through its
+        data (through its last epoch again at the data's end), its outputs meaningless,
+        until ``restart``."""
         env, run = self.env, self.run
         if self.ended.any():
             run.k = np.where(self.ended, np.minimum(run.k, run.epochs - 1), run.k)

@@ -2,7 +2,7 @@
 process (``gym.make_vec(ENV_ID, num_envs=N)``; ``vectorization_mode="vector_entry_point"``
 is the default for the aligngym ids).
 
-All N slots share one batched filter (``env_core.Cohort``), whenever they reset: each
+All N slots share one batched filter (``env_core.EnvRun``), whenever they reset: each
 slot's episode has its own epoch, and a slot that resets begins its new episode in the
 filter while the others go on (a divergence or a reset_mask leaves the slots ending at
 different steps without splitting the batch). Every slot's observations,
@@ -30,7 +30,7 @@ from gymnasium.vector.utils import batch_space
 
 from aligngym.models.units import arcmin
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.env_core import Cohort, EnvCore
+from aligngym.scenarios.env_core import EnvCore, EnvRun
 
 
 class AlignmentVectorEnv(EnvCore, VectorEnv):
@@ -66,7 +66,7 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
-        self._cohort: Cohort | None = None     # slot i is the cohort's member i
+        self._slots: EnvRun | None = None     # slot i is the run's member i
         self._episode_seeds = np.full(self.num_envs, -1)
         self._obs = np.zeros((self.num_envs, *self.single_observation_space.shape),
                              np.float32)
@@ -86,11 +86,11 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
             begun.append(self._begin(own, self._rngs[i]))
         episodes = [episode for _, episode, _ in begun]
         starts = np.stack([start for _, _, start in begun])
-        if self._cohort is None or len(slots) == self.num_envs:
-            self._cohort = Cohort(self, episodes, starts)
+        if self._slots is None or len(slots) == self.num_envs:
+            self._slots = EnvRun(self, episodes, starts)
         else:
-            self._cohort.restart(slots, episodes, starts)
-        obs = self._cohort.observations()
+            self._slots.restart(slots, episodes, starts)
+        obs = self._slots.observations()
         infos = []
         for i, (episode_seed, _, start) in zip(slots, begun):
             self._episode_seeds[i] = episode_seed
@@ -148,7 +148,7 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
     def step(self, actions):
         """One filter epoch per slot (actions (num_envs, A), clipped to [-1, 1]); slots
         ended at the previous step are reset instead in "next-step" mode."""
-        if self._cohort is None:
+        if self._slots is None:
             raise RuntimeError("call reset() before step()")
         actions = self._checked_actions(actions, (self.num_envs,))
         rewards = np.zeros(self.num_envs)
@@ -162,9 +162,9 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         stepping = [i for i in range(self.num_envs) if i not in resetting]
         if stepping:
             # next-step mode: the ended slots go through the step with the zero action
-            # (``Cohort.step``), then begin their new episodes
+            # (``EnvRun.step``), then begin their new episodes
             members = np.where(self._autoreset[:, None], 0.0, actions)
-            obs, reward, term, trunc, infos = self._cohort.step(members)
+            obs, reward, term, trunc, infos = self._slots.step(members)
             for i in stepping:
                 self._obs[i], rewards[i], terminated[i], truncated[i] = (
                     obs[i], reward[i], term[i], trunc[i])
@@ -196,4 +196,4 @@ class AlignmentVectorEnv(EnvCore, VectorEnv):
         return self._episode_seeds.copy()
 
     def close_extras(self, **kwargs) -> None:
-        self._cohort = None
+        self._slots = None

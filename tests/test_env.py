@@ -288,7 +288,7 @@ def test_observation_holds_the_whole_innovation(env_id, measured):
     env.reset(seed=3)
     for _ in range(5):
         obs = env.step(np.zeros(env.action_space.shape, np.float32))[0]
-    report = env.unwrapped._cohort.report       # what the last update computed
+    report = env.unwrapped._slots.report       # what the last update computed
     e = report.innovation[0] / np.sqrt(np.diagonal(report.S[0]))
     expected = np.where(report.valid[0], np.clip(e, -10, 10), 0.0)
     assert e.size == measured

@@ -100,3 +100,43 @@ def test_copy_members_takes_rows_and_refuses_state_it_cannot_split():
     target.epoch = 4                         # the others have gone on: it differs
     with pytest.raises(MemberStateError, match=r"_Counter\.epoch: int is neither"):
         copy_members(target, fresh, [1])
+
+
+def test_copy_members_refuses_state_set_after_the_start():
+    target, fresh = _Counter(3, epoch=0), _Counter(1, epoch=0)
+    target.gain = np.ones(3)                 # made by a step: fresh has none
+    with pytest.raises(MemberStateError, match=r"_Counter\.gain: set on one object only"):
+        copy_members(target, fresh, [1])
+    copy_members(target, fresh, [1], skip=("gain",))      # declared scratch: left alone
+
+
+def test_a_policy_without_restart_is_named_at_a_partial_reset():
+    from aligngym.estimators.adaptation import AdaptationPolicy, Adjustment
+
+    class Counting(AdaptationPolicy):
+        name = "counting"
+
+        def adapt(self, ctx):
+            return Adjustment(None, None, np.zeros((ctx.R.shape[0], 0)))
+
+    with pytest.raises(NotImplementedError, match="adaptation 'counting' .* no restart"):
+        Counting().restart(np.array([0]))
+
+
+def test_an_episode_is_timed_from_its_own_start():
+    """The shared run's step time is shared among its episodes; a restarted episode's
+    share starts again (its ms_per_epoch does not grow with the env's age)."""
+    from aligngym.scenarios.vector_env import AlignmentVectorEnv
+    env = AlignmentVectorEnv(2, scenario="static-large-azimuth", estimator="kf",
+                             episode_length=6.0)
+    env.reset(seed=0)
+    zero = np.zeros((2, 3), np.float32)
+    for _ in range(3):
+        env.step(zero)
+    env.reset(options={"reset_mask": np.array([True, False])})
+    run = env._slots.run
+    assert run.member_seconds[0] == 0.0 < run.member_seconds[1]
+    for _ in range(2):
+        env.step(zero)
+    assert 0.0 < run.member_seconds[0] < run.member_seconds[1]
+    assert run.result([0]).seconds_per_epoch == run.member_seconds[0] / 2
