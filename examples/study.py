@@ -430,7 +430,9 @@ def main() -> None:
     env = make(len(test), "test")
     trained_on = f", {args.reward} reward" if args.reward != "attitude" else ""
     best_constant = score(env, test, constant(action[0], len(test)))
-    rows.append(summarise("constant retune (CE)" + trained_on, base, best_constant,
+    # the tuned actions' own reward: this run's, unless taken from --tuned-from
+    ce_on = "" if "constant" in earlier else trained_on
+    rows.append(summarise("constant retune (CE)" + ce_on, base, best_constant,
                           tuned[base], {"action": action[0].tolist(),
                                         "train_reward": history,
                                         "wall_s": time.perf_counter() - start}))
@@ -454,7 +456,8 @@ def main() -> None:
         env = make(len(test), "test")
         oracle = score(env, test, piecewise(actions, starts, len(test)))
         env.close()
-        rows.append(summarise("oracle: constant per segment" + trained_on, base, oracle,
+        oracle_on = "" if "oracle" in earlier else trained_on
+        rows.append(summarise("oracle: constant per segment" + oracle_on, base, oracle,
                               tuned[base], {"actions": actions.tolist(),
                                             "segment_starts": starts,
                                             "train_reward": history,
@@ -492,12 +495,14 @@ def main() -> None:
            "test_seeds": [test[0], test[-1]], "train_reward": args.reward,
            "ppo_seeds": args.ppo_seeds, "normalize": args.normalize, "bank_s": bank_s,
            "wall_s": time.perf_counter() - clock, "arguments": vars(args), "rows": rows}
-    if args.out:
-        Path(args.out).write_text(json.dumps(out, indent=1))
+    entry = None
     if oracle is not None:
         entry = headroom(args.scenario, tuned[base], best_constant, oracle,
                          {**arms, "oracle": oracle})
         out["headroom"] = entry
+    if args.out:
+        Path(args.out).write_text(json.dumps(out, indent=1))
+    if entry is not None:
         if args.headroom:
             record_headroom(Path(args.headroom), entry)
         print_headroom(entry)
