@@ -51,7 +51,10 @@ headroom.
 
 
 SEARCH = ("train", "test", "ce_episodes", "ce_iterations", "ce_population",
-          "oracle_iterations", "oracle_population", "ppo_steps", "ppo_seeds", "normalize")
+          "oracle_iterations", "oracle_population", "ppo_steps", "ppo_seeds", "normalize",
+          "algo", "reward")
+DEFAULTS = {"algo": ["ppo"], "reward": "attitude"}
+"""Options left out of a reproduction where they have their default value."""
 """The study's options that a reproduction of an entry needs."""
 
 
@@ -67,16 +70,18 @@ def scenario_section(entry: dict, study: dict | None, figures: Path | None) -> s
         lines += [f"Experiment {study['experiment']}, base filter `{base}` (as tuned: "
                   f"{entry['default']:.3f}); {study['train_episodes']} training episodes, "
                   f"{entry['episodes']} test; {study['wall_s'] / 60:.0f} min on two cores.", ""]
-        if "arguments" in study:
-            a = study["arguments"]
-            options = [f"--{k.replace('_', '-')}" + ("" if v is True else f" {v}")
-                       for k, v in a.items()
-                       if k in SEARCH and v is not None and v is not False]
-            lines += ["Run: `python examples/study.py " + " ".join(options)
-                      + f" {entry['scenario']}`" + (
+        runs = [study["arguments"]] if "arguments" in study else []
+        runs += study.get("ablation_runs", [])   # more learned arms, the same test split
+        for i, a in enumerate(runs):
+            options = [f"--{k.replace('_', '-')}" + ("" if v is True else " " + (
+                           " ".join(v) if isinstance(v, list) else str(v)))
+                       for k, v in a.items() if k in SEARCH and v is not None
+                       and v is not False and DEFAULTS.get(k) != v]
+            lines += [("Run: " if i == 0 else "And: ") + "`python examples/study.py "
+                      + " ".join(options) + f" {entry['scenario']}`" + (
                           " (the best constant retune and the oracle's actions from the "
                           "same study without agents, `--tuned-from`)"
-                          if a.get("tuned_from") else ""), ""]
+                          if a.get("tuned_from") and i == 0 else ""), ""]
     lines += [f"Headroom: **{entry['headroom']:+.3f} [{lo:+.3f}, {hi:+.3f}]** per epoch, "
               f"{share:.0%} of the base filter's reward as tuned.", "",
               "| arm | reward / epoch | fraction of the headroom [95 % CI] |",
