@@ -295,8 +295,6 @@ class EnvRun:
         self.observed = env.experiment.observed_states(self.run.model.layout)
         self.report: UpdateReport | None = None
         """The last epoch's update (``GaussianFilter.update``); None before the first."""
-        self.reported = np.zeros(self.run.batch, bool)
-        """Members whose episode has had an update (the report's rows are theirs)."""
         self.ended = np.zeros(self.run.batch, bool)
         """Members whose episode has ended (their metrics given once)."""
         self.steps = env.episode_steps
@@ -320,7 +318,6 @@ class EnvRun:
         self.run.restart(np.asarray(members, int), self._run(episodes, starts))
         for b, episode in zip(members, episodes):
             self.episodes[b] = episode
-        self.reported[members] = False
         self.ended[members] = False
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
@@ -339,7 +336,6 @@ class EnvRun:
                                         mis["accel_noise"] * 10.0 ** (2 * actions[:, 1])),
                                r_scale=mis["measurement"] * 10.0 ** (2 * actions[:, 2]),
                                tuning=tuning)
-        self.reported[:] = True
         errors = self.attitude_errors()
         diverged = run.diverged
         terminated = diverged
@@ -369,11 +365,12 @@ class EnvRun:
         obs = np.zeros((run.batch, OBS_SIZE))
         first = INNOVATIONS.start
         report = self.report
-        if report is not None and self.reported.any():
+        reported = run.k > 0           # members with an update of their episode: its rows
+        if report is not None and reported.any():
             with np.errstate(divide="ignore", invalid="ignore"):
                 e = report.innovation / np.sqrt(np.diagonal(report.S, axis1=-2, axis2=-1))
             m = min(e.shape[-1], INNOVATIONS.stop - first)
-            used = report.valid & self.reported[:, None]
+            used = report.valid & reported[:, None]
             obs[:, first:first + m] = np.where(used, e, 0.0)[:, :m]
         sub = self.observed
         k = run.k
