@@ -39,7 +39,8 @@ from aligngym.estimators.euler_kinematics import (ALPHA, DV, EPS, N_STATES, NABL
                                                   C_p_n, level_rotation, midpoint_jacobian,
                                                   midpoint_step, reset_jacobian)
 from aligngym.estimators.model import (Epoch, FilterModel, Observation, StateLayout,
-                                       Transition, epoch_time, per_member)
+                                       Transition, add_once_per_epoch, epoch_time,
+                                       per_member)
 from aligngym.models.earth import OMEGA_IE
 from aligngym.models.units import deg, deg_per_h, mg
 
@@ -180,14 +181,8 @@ class EulerLargeMisalignmentModel(FilterModel):
 
     def observation(self, k, r_scale=1.0):
         """The INS's horizontal velocity at boundary k+1 (advanced once per epoch)."""
-        due = self._v_epoch != k
-        if due.any():
-            if np.any(due & (k != self._v_epoch + 1)):
-                raise ValueError(f"observation({k}) after observation({self._v_epoch}): "
-                                 "epochs must be taken in order")
-            self._v = np.where(due[:, None], self._v + self.integrals.delta_v(self.C0, k),
-                               self._v)
-            self._v_epoch = np.where(due, k, self._v_epoch)
+        self._v, self._v_epoch = add_once_per_epoch(
+            self._v, self._v_epoch, k, lambda: self.integrals.delta_v(self.C0, k))
         return Observation(noise=per_member(r_scale, self.batch) * self._R, matrix=self._Hb,
                            z=self._v[:, :2].copy(), t=epoch_time(self.t, k + 1))
 

@@ -22,8 +22,8 @@ import numpy as np
 from aligngym.estimators.alignment import FineResult, run_alignment
 from aligngym.estimators.filters import GaussianFilter
 from aligngym.estimators.model import (FilterModel, Observation, StateLayout, Transition,
-                                       at_epoch, epoch_time, per_member, stack_episodes,
-                                       whole_steps)
+                                       add_once_per_epoch, at_epoch, epoch_time,
+                                       per_member, stack_episodes, whole_steps)
 from aligngym.estimators.inertial_frame import (BodyFrameIntegrals, C_n_i, gravity_i,
                                        gravity_velocity_i)
 from aligngym.models.attitude import rotvec_to_dcm, skew
@@ -170,14 +170,9 @@ class InertialFineModel(FilterModel):
         return Transition(noise=Q, matrix=Phi)
 
     def observation(self, k, r_scale=1.0):
-        due = self._Z_epoch != k  # accumulate the specific-force integral once per epoch
-        if due.any():
-            if np.any(due & (k != self._Z_epoch + 1)):
-                raise ValueError(f"observation({k}) after observation({self._Z_epoch}): "
-                                 "epochs must be taken in order")
-            dZ = np.einsum("bij,bj->bi", self.C_s0_i, at_epoch(self.inputs.dW, k))
-            self._Z_acc = np.where(due[:, None], self._Z_acc + dZ, self._Z_acc)
-            self._Z_epoch = np.where(due, k, self._Z_epoch)
+        self._Z_acc, self._Z_epoch = add_once_per_epoch(   # the specific-force integral
+            self._Z_acc, self._Z_epoch, k,
+            lambda: np.einsum("bij,bj->bi", self.C_s0_i, at_epoch(self.inputs.dW, k)))
         z = self._Z_acc - (at_epoch(self._V_grav, k + 1) - self._V_grav[:, 0])
         r = per_member(r_scale, self.batch)
         C_i_n = at_epoch(self._C_i_n, k + 1)

@@ -192,6 +192,21 @@ def epoch_time(t: Array, k: Epoch) -> float | Array:
     return float(t[k]) if np.ndim(k) == 0 else t[k]
 
 
+def add_once_per_epoch(total: Array, last: Array, k: Epoch,
+                       increment: Callable[[], Array]) -> tuple[Array, Array]:
+    """A running sum over epochs (B, d) that an observation reads: increment() (B, d),
+    epoch k's term, added for the episodes whose last epoch summed (B,) is not k yet
+    (an epoch observed twice adds once); epochs must come in order (else ValueError).
+    Returns the sum and the last epochs."""
+    due = last != k
+    if not due.any():
+        return total, last
+    if np.any(due & (k != last + 1)):
+        raise ValueError(f"observation({k}) after observation({last}): epochs must be "
+                         "taken in order")
+    return np.where(due[:, None], total + increment(), total), np.where(due, k, last)
+
+
 def per_member(scale: Scale, batch: int) -> Array:
     """A noise multiplier as (B, 1, 1), to multiply a (B, n, n) covariance; ``[:, 0]``
     gives (B, 1) for a (B, n) diagonal."""
