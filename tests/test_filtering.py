@@ -20,11 +20,16 @@ def short002():
 
 def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, monkeypatch):
     """Forced into worker processes with sghkf-3 split over two of them (the workers' own
-    pids seen): each run's every field, factors included, equals that of the filters run
-    one after another on the whole batch."""
+    pids seen), every array of their runs sent back as a shared file
+    (``transport.shared_arrays``): each run's every field, factors included, equals that
+    of the filters run one after another on the whole batch."""
+    import mmap
     import os
 
+    from aligngym.scenarios.campaign import transport
+
     exp, episodes, starts = short002
+    monkeypatch.setattr(transport, "SHARED_ARRAY_BYTES", 1)
     monkeypatch.setattr(filtering, "PARALLEL_MIN_WORK", 0.0)
     monkeypatch.setattr(filtering, "MIN_CHUNK_POINTS", 100)
     monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
@@ -59,6 +64,10 @@ def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, mo
             np.testing.assert_array_equal(a.result.series[key], values)
         np.testing.assert_array_equal(a.status, b.status)
         np.testing.assert_array_equal(a.error_n, b.error_n)
+    base = runs[0].result.P
+    while isinstance(base, np.ndarray):
+        base = base.base
+    assert isinstance(getattr(base, "obj", base), mmap.mmap)      # mapped, not piped
 
 
 def test_the_plan_never_splits_below_the_chunk_size_nor_beyond_the_processes(short002):
@@ -152,3 +161,47 @@ def test_the_makespan_hands_the_largest_task_out_first():
     assert filtering.makespan([3.0, 3.0, 2.0, 2.0, 2.0], 2) == 7.0
     assert filtering.makespan([5.0, 1.0, 1.0], 2) == 5.0
     assert filtering.makespan([1.0, 1.0, 1.0], 4) == 1.0
+
+
+@pytest.mark.parametrize("paper, settings", [("paper001", {"fine_duration": 10.0}),
+                                             ("paper003", {"fine_duration": 10.0})])
+def test_an_experiment_declares_whether_its_filters_run_compiled_kernels(paper, settings,
+                                                                         monkeypatch):
+    """``Experiment.filters_compiled``, which decides whether a campaign's parent loads the
+    Numba kernels for its filter workers, is what the default filters do: paper 001's
+    models call the compiled strapdown every epoch, paper 003's call no kernel."""
+    from aligngym.estimators import euler_kernel, strapdown_kernel
+
+    exp = experiment(paper, **settings)
+    episodes = prepare_all(exp, episode_seeds(0, 1), None, False, 1, progress=False)
+    calls = []
+    for module in (strapdown_kernel, euler_kernel):
+        for name in ("mechanize", "compensate_increments", "midpoint_points"):
+            if hasattr(module, name):
+                kernel = getattr(module, name)
+                monkeypatch.setattr(module, name, lambda *a, _k=kernel, _n=name:
+                                    calls.append(_n) or _k(*a))
+    errors = exp.start_errors(episodes)
+    for name in exp.default_filters:
+        run_filter_starts(name, {s: errors[s] for s in exp.starts}, episodes, exp)
+    assert bool(calls) == exp.filters_compiled
+
+
+def test_a_campaign_uses_no_more_threads_than_its_workers(monkeypatch):
+    """``executors.thread_budget``: one worker holds BLAS and the MuJoCo rollout to one
+    thread (before, a one-worker campaign prepared on every core); both come back after."""
+    from threadpoolctl import threadpool_info
+
+    from aligngym.models import world
+    from aligngym.scenarios.campaign import executors
+
+    monkeypatch.setattr(executors, "usable_cores", lambda: 4)
+    monkeypatch.setattr(world, "ROLLOUT_THREADS", 4)
+    before = [pool["num_threads"] for pool in threadpool_info()]
+    with executors.thread_budget(1):
+        assert world.ROLLOUT_THREADS == 1
+        assert all(pool["num_threads"] == 1 for pool in threadpool_info())
+    with executors.thread_budget(2):
+        assert world.ROLLOUT_THREADS == 2
+    assert world.ROLLOUT_THREADS == 4
+    assert [pool["num_threads"] for pool in threadpool_info()] == before

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
 from aligngym.scenarios.campaign.experiment import Experiment
+from aligngym.scenarios.campaign.transport import shared_arrays
 from aligngym.scenarios.config import ConfigError
 from aligngym.scenarios.interrupts import raise_if_interrupted
 
@@ -31,8 +32,10 @@ def while_waiting(task: Callable[[], None]) -> None:
     on a core the workers leave over rather than on the critical path, and inherited by
     the processes forked later. Never run if no wait comes (the work is then done where
     it is needed). A task's exception is left to whoever needs the work (the same
-    import fails again there): it is not raised into the campaign."""
-    _WHILE_WAITING.append(task)
+    import fails again there): it is not raised into the campaign. A task queued already
+    is not queued again."""
+    if task not in _WHILE_WAITING:
+        _WHILE_WAITING.append(task)
 
 
 def run_waiting_work() -> None:
@@ -169,13 +172,14 @@ def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
     """Local worker processes (which ignore Ctrl-C), no more than the cores (more would
     only share them); on an interruption or an error the pool is stopped at once, the
     finished episodes being saved already."""
-    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, usable_cores(), len(seeds))),
-                               initializer=start_worker, initargs=(os.getpid(),))
-    with stopped_on_error(pool):
-        futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
-        run_waiting_work()
-        for fut in as_completed(futures):
-            finish(futures[fut], fut.result())
+    with shared_arrays():             # the episodes come back as shared files
+        pool = ProcessPoolExecutor(max_workers=max(1, min(workers, usable_cores(), len(seeds))),
+                                   initializer=start_worker, initargs=(os.getpid(),))
+        with stopped_on_error(pool):
+            futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
+            run_waiting_work()
+            for fut in as_completed(futures):
+                finish(futures[fut], fut.result())
 
 
 @contextmanager
@@ -201,6 +205,59 @@ def stop_pool(pool: ProcessPoolExecutor) -> None:
     for process in running:
         process.terminate()
     pool.shutdown(wait=True, cancel_futures=True)
+
+
+HEAP_ARRAY_BYTES = 64 << 20
+"""Arrays up to this size come from the heap once ``keep_freed_memory`` has run."""
+HEAP_KEPT_BYTES = 512 << 20
+"""Freed memory at the top of the heap up to this size stays with the process."""
+
+
+def keep_freed_memory() -> None:
+    """glibc's allocator told (mallopt) to take arrays of up to ``HEAP_ARRAY_BYTES`` from the
+    heap and to keep up to ``HEAP_KEPT_BYTES`` of freed memory, for this process and the
+    workers it forks: a campaign makes and frees many arrays of a few MB an epoch or an
+    episode, and each was otherwise mapped, faulted in page by page and unmapped again
+    (paper 003's bench, 32 episodes, one worker: 221 000 page faults and 1.2 s of system
+    time, 57 000 and 0.6 s with this; the glibc settings MALLOC_MMAP_THRESHOLD_ and
+    MALLOC_TRIM_THRESHOLD_). Both are set, or neither: either alone turns off glibc's
+    adaptive threshold and faults more. Nothing is done off glibc, or once done."""
+    global _MEMORY_KEPT
+    if _MEMORY_KEPT or not sys.platform.startswith("linux"):
+        return
+    _MEMORY_KEPT = True
+    import ctypes
+    try:
+        libc = ctypes.CDLL(None)
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):         # not glibc (musl has no mallopt)
+        return
+    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+    if mallopt(M_MMAP_THRESHOLD, HEAP_ARRAY_BYTES):
+        mallopt(M_TRIM_THRESHOLD, HEAP_KEPT_BYTES)
+
+
+_MEMORY_KEPT = False
+
+
+@contextmanager
+def thread_budget(workers: int) -> Iterator[None]:
+    """This process's BLAS and OpenMP pools and MuJoCo's kinematic rollout held to
+    ``workers`` threads (and the cores) for the block: ``--workers K`` uses at most K cores,
+    whether the work runs in K processes of one thread each or here (one worker: one
+    thread; before, a one-worker campaign prepared its episodes on every core, paper 001's
+    on 1.9 of two). Restored when the block ends."""
+    from threadpoolctl import threadpool_limits
+
+    from aligngym.models import world
+    threads = max(1, min(workers, usable_cores()))
+    rollout = world.ROLLOUT_THREADS
+    world.ROLLOUT_THREADS = min(rollout, threads)
+    try:
+        with threadpool_limits(threads):
+            yield
+    finally:
+        world.ROLLOUT_THREADS = rollout
 
 
 def can_fork_workers() -> bool:

@@ -112,6 +112,13 @@ class Experiment(ABC):
     on the earlier one; measured by benchmarks/bench_member_cost.py): the
     filter phase splits a batch by it where its models' maps cost more than a point of
     paper 002's (``filtering.member_points``)."""
+    filters_compiled: bool = True
+    """Its filters' models run the Numba-compiled kernels (the strapdown, paper 002's Euler
+    map): a campaign on more than one worker loads them in its parent while the episodes
+    are prepared, so that the filter workers it forks inherit them (about 0.4 s each
+    otherwise; ``estimators.kernels``). False where no filter needs them (paper 003's
+    models integrate nothing per epoch): the load would only take a core from the
+    preparation. tests/test_filtering.py checks the declaration."""
     filter_settings: frozenset[str] = frozenset({"default_filters", "rms_window",
                                                  "heading_threshold_arcmin"})
     """Settings that concern the filters or the analysis only: the prepared episodes do

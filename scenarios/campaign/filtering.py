@@ -32,6 +32,7 @@ from aligngym.scenarios.campaign.executors import (can_fork_workers, run_waiting
                                                    usable_cores)
 from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.campaign.results import FilterRun
+from aligngym.scenarios.campaign.transport import shared_arrays
 from aligngym.scenarios.campaign.runs import (analyse_starts, concatenate_results,
                                               member_batch, run_members)
 from aligngym.scenarios.interrupts import raise_if_interrupted
@@ -179,19 +180,22 @@ def _run_in_processes(tasks: list[FilterTask], processes: int,
                       results: dict[int, FineResult], bar: Any, shared: tuple) -> None:
     """Forked workers (one BLAS thread each, Ctrl-C left to this process) that inherit
     ``shared`` (experiment, members, starts), the largest tasks first; on an
-    interruption or an error the pool is stopped at once."""
-    pool = ProcessPoolExecutor(max_workers=processes,
-                               mp_context=multiprocessing.get_context("fork"),
-                               initializer=_filter_worker,
-                               initargs=(os.getpid(), shared))
-    with stopped_on_error(pool):
-        order = sorted(range(len(tasks)), key=lambda i: -tasks[i].work)
-        futures = {pool.submit(_run_task, tasks[i].name, tasks[i].index): i for i in order}
-        run_waiting_work()
-        for future in as_completed(futures):
-            raise_if_interrupted()
-            results[futures[future]] = future.result()
-            bar.update()
+    interruption or an error the pool is stopped at once. The runs come back as shared
+    files (``transport.shared_arrays``)."""
+    with shared_arrays():
+        pool = ProcessPoolExecutor(max_workers=processes,
+                                   mp_context=multiprocessing.get_context("fork"),
+                                   initializer=_filter_worker,
+                                   initargs=(os.getpid(), shared))
+        with stopped_on_error(pool):
+            order = sorted(range(len(tasks)), key=lambda i: -tasks[i].work)
+            futures = {pool.submit(_run_task, tasks[i].name, tasks[i].index): i
+                       for i in order}
+            run_waiting_work()
+            for future in as_completed(futures):
+                raise_if_interrupted()
+                results[futures[future]] = future.result()
+                bar.update()
 
 
 def _filter_worker(parent: int, shared: tuple) -> None:

@@ -1,0 +1,27 @@
+"""The Numba-compiled kernels loaded ahead of need (``load_compiled_kernels``)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def load_compiled_kernels() -> None:
+    """Every compiled kernel (the strapdown's compensation and mechanization, paper 002's
+    Euler map) loaded into this process from Numba's on-disk cache, by one call each on
+    one episode of one interval. About 0.5 s, most of it Numba's own start-up: a campaign's
+    parent pays it once while it waits for its preparation workers, and the filter workers
+    it forks afterwards inherit the kernels instead of each paying it in its first filter
+    (paper 001, two workers: 0.5 s of each worker's 1.6-3.8 s)."""
+    from aligngym.estimators.euler_kernel import midpoint_points
+    from aligngym.estimators.strapdown_kernel import compensate_increments, mechanize
+
+    one = np.zeros((1, 1, 3))
+    compensate_increments(one, one, one[:, 0], one[:, 0], np.empty_like(one),
+                          np.empty_like(one))
+    q0 = np.array([[1.0, 0.0, 0.0, 0.0]])
+    column = np.zeros(1)
+    mechanize(q0, np.zeros((1, 3)), column, column, column, np.zeros((1, 3)), one, one, 0.01,
+              np.empty((1, 2, 4)), np.empty((1, 2, 3)), np.empty((1, 2)), np.empty((1, 2)),
+              np.empty((1, 2)), np.empty((1, 3)))
+    x = np.zeros((1, 1, 10))
+    midpoint_points(x, 0.01, np.eye(3)[None], np.zeros((1, 3)), np.zeros((1, 3)),
+                    np.empty_like(x))
