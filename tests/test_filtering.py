@@ -33,12 +33,14 @@ def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, mo
     monkeypatch.setattr(filtering, "PARALLEL_MIN_WORK", 0.0)
     monkeypatch.setattr(filtering, "MIN_CHUNK_POINTS", 100)
     monkeypatch.setattr(filtering, "usable_cores", lambda: 2)
-    pids = []
+    pids, analysed = [], []
     real = filtering._run_in_processes
 
     def spy(tasks, processes, results, *rest):
         real(tasks, processes, results, *rest)
-        pids.extend(r.series.get("pid", [0])[0] for r in results.values())
+        for r in results.values():       # a whole batch comes back analysed (FilterRuns)
+            pids.append((r[0].result if isinstance(r, list) else r).series["pid"][0])
+            analysed.append(isinstance(r, list))
     monkeypatch.setattr(filtering, "_run_in_processes", spy)
     run_members = filtering.run_members
 
@@ -53,6 +55,7 @@ def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, mo
         ("ekf", [0, 1, 2]), ("sghkf-3", [0, 1]), ("sghkf-3", [2])]
     runs = filtering.run_filters(names, starts, episodes, exp, workers=2, epochs=31)
     assert len(pids) == 3 and os.getpid() not in pids          # run in forked workers
+    assert sorted(analysed) == [False, False, True]     # ekf's whole batch analysed there
     serial = [run for name in names for run in run_filter_starts(name, starts, episodes, exp)]
     assert [(r.filter, r.start) for r in runs] == [(r.filter, r.start) for r in serial]
     for a, b in zip(runs, serial):
@@ -63,7 +66,9 @@ def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, mo
         for key, values in b.result.series.items():
             np.testing.assert_array_equal(a.result.series[key], values)
         np.testing.assert_array_equal(a.status, b.status)
-        np.testing.assert_array_equal(a.error_n, b.error_n)
+        for field in ("error_n", "euler_error", "nees", "heading_convergence"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        assert a.reason == b.reason
     base = runs[0].result.P
     while isinstance(base, np.ndarray):
         base = base.base

@@ -130,13 +130,18 @@ def makespan(works: list[float], processes: int) -> float:
 
 
 _SHARED: tuple | None = None
-"""A filter worker's (experiment, members, starts), set when it starts (``_filter_worker``):
-a task carries only a filter name and member indices."""
+"""A filter worker's (experiment, members, starts, episodes, start names), set when it
+starts (``_filter_worker``): a task carries only a filter name and member indices."""
 
 
-def _run_task(name: str, index: np.ndarray) -> FineResult:
-    experiment, members, starts = _SHARED
-    return run_members(name, index, members, starts, experiment)
+def _run_task(name: str, index: np.ndarray) -> FineResult | list[FilterRun]:
+    """A task's run in a worker: a whole batch analysed there too (its FilterRuns, one per
+    start), a chunk as it is (analysed once its filter's chunks are joined)."""
+    experiment, members, starts, episodes, start_names = _SHARED
+    result = run_members(name, index, members, starts, experiment)
+    if index.size < len(members):
+        return result
+    return analyse_starts(name, start_names, result, episodes, experiment)
 
 
 def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
@@ -155,7 +160,7 @@ def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
     tasks = plan_filter_tasks(filters, experiment, len(members), epochs, processes)
     parallel = (processes > 1 and len(tasks) > 1 and can_fork_workers()
                 and sum(t.work for t in tasks) >= PARALLEL_MIN_WORK)
-    results: dict[int, FineResult] = {}
+    results: dict[int, FineResult | list[FilterRun]] = {}
     bar = tqdm(total=len(tasks), disable=not progress, desc="filter runs (chunks)")
     try:
         if not parallel:
@@ -165,21 +170,26 @@ def run_filters(filters: list[str], start_errors: dict[str, np.ndarray],
                 bar.update()
         else:
             _run_in_processes(tasks, min(processes, len(tasks)), results, bar,
-                              (experiment, members, starts))
+                              (experiment, members, starts, episodes, list(start_errors)))
     finally:
         bar.close()
     runs: list[FilterRun] = []
     for name in filters:
         parts = [results[i] for i, task in enumerate(tasks) if task.name == name]
+        if len(parts) == 1 and isinstance(parts[0], list):   # analysed by its worker
+            runs += parts[0]
+            continue
         result = parts[0] if len(parts) == 1 else concatenate_results(parts)
         runs += analyse_starts(name, list(start_errors), result, episodes, experiment)
     return runs
 
 
 def _run_in_processes(tasks: list[FilterTask], processes: int,
-                      results: dict[int, FineResult], bar: Any, shared: tuple) -> None:
+                      results: dict[int, FineResult | list[FilterRun]], bar: Any,
+                      shared: tuple) -> None:
     """Forked workers (one BLAS thread each, Ctrl-C left to this process) that inherit
-    ``shared`` (experiment, members, starts), the largest tasks first; on an
+    ``shared`` (experiment, members, starts, episodes, start names), the largest tasks
+    first (a whole batch's runs analysed there: ``_run_task``); on an
     interruption or an error the pool is stopped at once. The runs come back as shared
     files (``transport.shared_arrays``)."""
     with shared_arrays():
