@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from aligngym.scenarios.campaign import episode_seeds, prepare_all
+from aligngym.estimators.catalogue import filter_entry
 from aligngym.scenarios.campaign import filtering
 from aligngym.scenarios.campaign.runs import run_filter_starts
 from aligngym.scenarios.experiments import experiment
@@ -147,8 +148,9 @@ def test_work_queued_for_the_wait_runs_once_here_while_the_workers_run(short002,
 
 def test_a_split_that_shortens_the_phase_is_made_and_one_that_does_not_is_not():
     """Paper 001's three filters of one task each on two processes: one is split in two
-    (four tasks, two a process: the estimated phase 19600 against 22800 point-epochs an
-    epoch); on four processes none is (each has a process of its own already). Paper
+    (four tasks, two a process: by their measured costs, the estimated phase 3.3 s
+    against 3.9 s unsplit); on four processes none is (each has a process of its own
+    already). Paper
     000's measured cost a member (``member_points``, 650 points of paper 002's model)
     splits its 64 members (two starts) in two for every filter, where its rules' 7-36
     points would not."""
@@ -160,6 +162,26 @@ def test_a_split_that_shortens_the_phase_is_made_and_one_that_does_not_is_not():
     e000 = experiment("paper000")
     plan = filtering.plan_filter_tasks(list(e000.default_filters), e000, 64, 100, 2)
     assert [t.index.size for t in plan] == [32] * 8
+
+
+def test_measured_filter_costs_weigh_the_tasks_and_order_them():
+    """``Experiment.filter_costs``: paper 004's four filters, 14.3, 5.0, 13.8 and 14.1 s on
+    32 episodes by their measured costs, are weighed by them (no longer as equal: the plan
+    had handed stekf out second, leaving two of the three dear ones to one process); a
+    filter the experiment has not measured keeps its rule's points and the fixed cost of
+    ``EPOCH_OVERHEAD_POINTS``."""
+    e004 = experiment("paper004")
+    plan = filtering.plan_filter_tasks(list(e004.default_filters), e004, 32, 1941, 2)
+    for task in plan:
+        us, ms = e004.filter_costs[task.name]
+        assert task.work == pytest.approx(1941 * (ms * 1e3 + 32 * us) / filtering.POINT_US)
+    order = [t.name for t in sorted(plan, key=lambda t: -t.work)]
+    assert order == ["stukf", "ekf", "ukf-3n", "stekf"]
+    e002 = experiment("paper002")
+    (ukf,) = filtering.plan_filter_tasks(["ukf"], e002, 3, 100, 2)
+    points = filter_entry("ukf").rule().point_count(e002.state_count)
+    assert not e002.filter_costs and ukf.work == 100 * (filtering.EPOCH_OVERHEAD_POINTS
+                                                        + 3 * points)
 
 
 def test_the_makespan_hands_the_largest_task_out_first():

@@ -112,6 +112,12 @@ class Experiment(ABC):
     on the earlier one; measured by benchmarks/bench_member_cost.py): the
     filter phase splits a batch by it where its models' maps cost more than a point of
     paper 002's (``filtering.member_points``)."""
+    filter_costs: ClassVar[dict[str, tuple[float, float]]] = {}
+    """Measured costs of its filters (benchmarks/bench_member_cost.py, on the 2-core x86_64
+    machine of 2026-12-06): name -> (us a member and epoch, ms an epoch whatever the
+    batch). The filter phase's plan weighs and orders a named filter's tasks by them
+    (``filtering.member_points``, ``epoch_points``): paper 004's four filters cost 4.6 to
+    15 s each on 32 episodes, which ``member_points`` alone counts as equal."""
     filters_compiled: bool = True
     """Its filters' models run the Numba-compiled kernels (the strapdown, paper 002's Euler
     map): a campaign on more than one worker loads them in its parent while the episodes

@@ -51,6 +51,10 @@ SPLIT_GAIN = 0.95
 the estimate's fixed cost is paper 002's UKF's, and an EKF's is larger (its Jacobian), so
 a split that gains less may lose (paper 002's EKF split in two: 0.03 % by the estimate,
 slower measured)."""
+POINT_US = 0.23
+"""us an integration point of paper 002's model takes (sghkf-4 on the 2-core x86_64
+machine of 2026-12-06): the unit the plan counts in, to which ``Experiment.filter_costs``
+(measured in us and ms) are converted."""
 PARALLEL_MIN_WORK = 4e6
 """Point-epochs (with each task's fixed cost, ``task_work``) below which the filters run
 in this process: starting workers and returning their runs costs about what 1 s of
@@ -67,10 +71,11 @@ class FilterTask:
     work: float
 
 
-def task_work(points: float, members: int, epochs: int) -> float:
+def task_work(points: float, members: int, epochs: int,
+              fixed: float = EPOCH_OVERHEAD_POINTS) -> float:
     """Point-epochs of a filter of ``points`` per member over ``members`` for ``epochs``
-    epochs, its fixed per-epoch cost included."""
-    return float(epochs) * (EPOCH_OVERHEAD_POINTS + members * points)
+    epochs, its fixed per-epoch cost (``fixed`` points an epoch) included."""
+    return float(epochs) * (fixed + members * points)
 
 
 def member_points(name: str, experiment: Experiment) -> float:
@@ -78,10 +83,21 @@ def member_points(name: str, experiment: Experiment) -> float:
     rule's points and the experiment's measured floor (``Experiment.member_points``, in
     points of paper 002's model, ``EPOCH_OVERHEAD_POINTS``' unit). The rule's points are
     counted as if a point cost what one of paper 002's does, so a filter dearer than the
-    floor (paper 004's stukf, 12x its stekf) is under-estimated: the floor errs towards
-    fewer chunks."""
+    floor is under-estimated: the floor errs towards fewer chunks. A filter whose cost the
+    experiment has measured (``Experiment.filter_costs``) counts that instead."""
+    if name in experiment.filter_costs:
+        return experiment.filter_costs[name][0] / POINT_US
     points = filter_entry(name).rule().point_count(experiment.state_count)
     return float(max(points, experiment.member_points))
+
+
+def epoch_points(name: str, experiment: Experiment) -> float:
+    """A filter's fixed cost an epoch (whatever the batch) in points as the plan counts it:
+    the experiment's measured one (``Experiment.filter_costs``), else
+    ``EPOCH_OVERHEAD_POINTS``."""
+    if name in experiment.filter_costs:
+        return experiment.filter_costs[name][1] * 1e3 / POINT_US
+    return float(EPOCH_OVERHEAD_POINTS)
 
 
 def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
@@ -97,11 +113,13 @@ def plan_filter_tasks(filters: list[str], experiment: Experiment, members: int,
     fifth of its work (paper 001: three filters of one task each on two processes, one of
     them split in two). In filter order, chunks in member order."""
     points = {name: member_points(name, experiment) for name in filters}
+    fixed = {name: epoch_points(name, experiment) for name in filters}
     chunks = {name: int(max(1, min(processes, members * points[name] // MIN_CHUNK_POINTS,
                                     members))) for name in filters}
 
     def tasks(counts: dict[str, int]) -> list[FilterTask]:
-        return [FilterTask(name, index, task_work(points[name], index.size, epochs))
+        return [FilterTask(name, index, task_work(points[name], index.size, epochs,
+                                                  fixed[name]))
                 for name in filters
                 for index in np.array_split(np.arange(members), counts[name])]
 

@@ -256,6 +256,8 @@ class Paper001Experiment(Experiment):
     model_variants = ("position-velocity",)
     state_count = 15
     member_points = 200.0    # lckf's 46 us a member-epoch, 2026-12-06 (bench_member_cost.py)
+    filter_costs = {'lckf': (39.6, 1.12), 'rakf': (48.7, 1.17), 'swakf': (46.6, 1.39)}
+    # (us a member-epoch, ms an epoch), 2026-12-06 (bench_member_cost.py)
     observation_features = frozenset({"conditionally-linear", "directions"})
     filter_settings = Experiment.filter_settings | {"accel_noise_density", "attitude_sigma_deg"}
     starts = (START,)
