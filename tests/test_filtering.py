@@ -216,7 +216,8 @@ def test_an_experiment_declares_whether_its_filters_run_compiled_kernels(paper, 
 
 def test_a_campaign_uses_no_more_threads_than_its_workers(monkeypatch):
     """``executors.thread_budget``: one worker holds BLAS and the MuJoCo rollout to one
-    thread (before, a one-worker campaign prepared on every core); both come back after."""
+    thread (before, a one-worker campaign prepared on every core); a pool held to fewer
+    threads keeps them; both come back after."""
     from threadpoolctl import threadpool_info
 
     from aligngym.models import world
@@ -230,5 +231,9 @@ def test_a_campaign_uses_no_more_threads_than_its_workers(monkeypatch):
         assert all(pool["num_threads"] == 1 for pool in threadpool_info())
     with executors.thread_budget(2):
         assert world.ROLLOUT_THREADS == 2
+        assert [pool["num_threads"] for pool in threadpool_info()] == \
+            [min(n, 2) for n in before]
+        with executors.thread_budget(1), executors.thread_budget(4):   # lowered, not raised
+            assert all(pool["num_threads"] == 1 for pool in threadpool_info())
     assert world.ROLLOUT_THREADS == 4
     assert [pool["num_threads"] for pool in threadpool_info()] == before

@@ -246,15 +246,18 @@ def thread_budget(workers: int) -> Iterator[None]:
     ``workers`` threads (and the cores) for the block: ``--workers K`` uses at most K cores,
     whether the work runs in K processes of one thread each or here (one worker: one
     thread; before, a one-worker campaign prepared its episodes on every core, paper 001's
-    on 1.9 of two). Restored when the block ends."""
-    from threadpoolctl import threadpool_limits
+    on 1.9 of two). A pool already held to fewer threads keeps them. Restored when the
+    block ends."""
+    from threadpoolctl import threadpool_info, threadpool_limits
 
     from aligngym.models import world
     threads = max(1, min(workers, usable_cores()))
     rollout = world.ROLLOUT_THREADS
     world.ROLLOUT_THREADS = min(rollout, threads)
+    # each pool lowered, never raised (a user's OMP_NUM_THREADS=1 stays 1)
+    limits = {pool["prefix"]: min(pool["num_threads"], threads) for pool in threadpool_info()}
     try:
-        with threadpool_limits(threads):
+        with threadpool_limits(limits=limits):
             yield
     finally:
         world.ROLLOUT_THREADS = rollout

@@ -62,7 +62,8 @@ def add_parser(sub: argparse._SubParsersAction, bench_details: bool = False,
     bench.add_argument("--force", action="store_true",
                        help="replace the campaign an existing --out holds (default: refuse)")
     bench.add_argument("--workers", type=integer_option("--workers"), metavar="K",
-                       help="parallel processes, or CPUs of a local Ray instance "
+                       help="cores to use: parallel processes of one thread each (1: this "
+                       "process, one thread), or CPUs of a local Ray instance "
                        "(default: all cores)")
     bench.add_argument("--executor", choices=EXECUTOR_CHOICES, default="local",
                        help="where episodes are prepared: local processes, or Ray tasks "

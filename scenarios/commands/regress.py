@@ -19,7 +19,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     reg.add_argument("--baselines", metavar="DIR",
                      help="baseline directory (default: the baselines shipped with the package)")
     reg.add_argument("--workers", type=integer_option("--workers"), metavar="K",
-                     help="parallel processes (default: all cores)")
+                     help="cores to use: parallel processes of one thread "
+                     "each (default: all cores)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -22,7 +22,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rpr.add_argument("--out", metavar="DIR", help="write DIR/claims.md (the page, with the "
                      "figures) and each campaign's outputs under DIR/PAPER/")
     rpr.add_argument("--workers", type=integer_option("--workers"), metavar="K",
-                     help="parallel processes (default: all cores)")
+                     help="cores to use: parallel processes of one thread "
+                     "each (default: all cores)")
 
 
 def run(args: argparse.Namespace) -> int:
