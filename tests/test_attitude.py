@@ -82,3 +82,29 @@ def test_batched_equals_looped(rng):
 def test_quat_angle_small():
     q = att.rotvec_to_quat(np.array([1e-9, 0.0, 0.0]))
     assert att.quat_angle(np.array([1.0, 0, 0, 0]), q) == pytest.approx(1e-9, rel=1e-9)
+
+
+def _numpy_scan(q: np.ndarray, axis: int = 0) -> np.ndarray:
+    """The running products as NumPy passes: the scan quat_cumprod compiles."""
+    out = np.moveaxis(np.array(q, dtype=float), axis, 0)
+    step = 1
+    while step < out.shape[0]:
+        out[step:] = att.quat_mul(out[:-step], out[step:])
+        out[step:] /= np.sqrt(np.sum(out[step:] ** 2, axis=-1, keepdims=True))
+        step *= 2
+    return np.moveaxis(out, 0, axis)
+
+
+@pytest.mark.parametrize("shape, axis", [((1, 3), 0), ((2, 3), 0), ((37, 3), 0),
+                                         ((5000, 3), 0), ((3, 257, 3), 1), ((6, 2, 3), 0)])
+def test_quat_cumprod_is_the_numpy_scan_to_the_bit_and_the_closed_form(rng, shape, axis):
+    """The compiled scan equals the NumPy passes bit for bit (any length, batch axis
+    before or after), and n equal steps compose to one rotation of n times the angle
+    (one axis: the closed form)."""
+    q = att.rotvec_to_quat(rng.normal(scale=0.02, size=shape))
+    np.testing.assert_array_equal(att.quat_cumprod(q, axis=axis), _numpy_scan(q, axis))
+    step = np.array([0.003, -0.001, 0.002])
+    n = shape[axis]
+    runs = att.quat_cumprod(np.broadcast_to(att.rotvec_to_quat(step), (n, 4)))
+    expected = att.rotvec_to_quat(np.arange(1, n + 1)[:, None] * step)
+    assert np.max(np.abs(runs - expected)) < 1e-12 * max(n, 10)
