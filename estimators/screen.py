@@ -52,19 +52,17 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _spikes(rate: np.ndarray, floor: float) -> np.ndarray:
-    """(M,) True at single-sample spikes of any axis of rate (M, 3)."""
-    finite = np.isfinite(rate)
-    x = np.where(finite, rate, 0.0)
-    second = np.zeros_like(x)
-    second[1:-1] = x[1:-1] - 0.5 * (x[:-2] + x[2:])
-    size = np.abs(second)
-    across = np.full_like(x, np.inf)            # how far the neighbours are apart
-    across[1:-1] = np.abs(x[2:] - x[:-2])
-    padded = np.pad(size, ((1, 1), (0, 0)))
-    peak = (size >= padded[:-2]) & (size >= padded[2:])
-    # Only candidates above the floor can pass the local threshold: its median is taken
-    # there alone (the median over every sample cost as much as simulating the run).
-    candidate = (size > floor) & peak & (across < 0.5 * size) & finite
+    """(M,) True at single-sample spikes of any axis of rate (M, 3): the second difference's
+    size, and the candidates (a finite sample above the floor, at least its neighbours,
+    which agree with each other: ``screen_kernel.spike_candidates``, compiled), then the
+    local median at the candidates alone (the median over every sample cost as much as
+    simulating the run)."""
+    from aligngym.estimators.screen_kernel import spike_candidates   # Numba: when run
+
+    rate = np.ascontiguousarray(rate, dtype=float)
+    size = np.empty_like(rate)
+    candidate = np.empty(rate.shape, dtype=np.bool_)
+    spike_candidates(rate, float(floor), size, candidate)
     k, axis = np.nonzero(candidate)
     edge = np.pad(size, ((SPIKE_WINDOW, SPIKE_WINDOW), (0, 0)), mode="edge")
     windows = np.lib.stride_tricks.sliding_window_view(edge, 2 * SPIKE_WINDOW + 1, axis=0)

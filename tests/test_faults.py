@@ -240,3 +240,53 @@ def test_the_fault_record_lists_the_gnss_faults_before_the_odometers(tmp_path):
     episode = simulate(load_scenario(path), seed=0)
     assert list(episode.faults.kind) == ["gnss_outage", "odometer_slip"]
     np.testing.assert_array_equal(episode.faults.start, [40.0, 30.0])
+
+
+def _numpy_spikes(rate: np.ndarray, floor: float) -> np.ndarray:
+    """The spike test as whole-array NumPy steps: the candidates ``screen._spikes``
+    compiles, then the same local median."""
+    from aligngym.estimators import screen
+    finite = np.isfinite(rate)
+    x = np.where(finite, rate, 0.0)
+    second = np.zeros_like(x)
+    second[1:-1] = x[1:-1] - 0.5 * (x[:-2] + x[2:])
+    size = np.abs(second)
+    across = np.full_like(x, np.inf)
+    across[1:-1] = np.abs(x[2:] - x[:-2])
+    padded = np.pad(size, ((1, 1), (0, 0)))
+    peak = (size >= padded[:-2]) & (size >= padded[2:])
+    candidate = (size > floor) & peak & (across < 0.5 * size) & finite
+    k, axis = np.nonzero(candidate)
+    w = screen.SPIKE_WINDOW
+    edge = np.pad(size, ((w, w), (0, 0)), mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(edge, 2 * w + 1, axis=0)
+    spike = np.zeros_like(candidate)
+    spike[k, axis] = size[k, axis] > screen.SPIKE_MADS * 1.4826 * np.median(
+        windows[k, axis], axis=-1)
+    return np.any(spike, axis=1)
+
+
+@pytest.mark.parametrize("samples", [3, 4, 60, 20000])
+def test_the_compiled_spike_candidates_flag_what_the_numpy_steps_flag(samples):
+    """``screen._spikes`` (its candidates compiled) flags the samples the NumPy steps flag,
+    on a swaying rate with spikes planted (one-sample, at the ends, beside a NaN, an inf,
+    two in a row, a kink, a step) and non-finite samples: the same flags, and some are
+    flagged."""
+    from aligngym.estimators import screen
+    rng = np.random.default_rng(samples)
+    t = np.arange(samples) * 0.01
+    rate = np.stack([0.05 * np.sin(0.7 * t + p) for p in (0.0, 1.0, 2.0)], -1)
+    rate += rng.normal(scale=1e-4, size=rate.shape)
+    for i in rng.choice(samples, size=max(1, samples // 50), replace=False):
+        rate[i, rng.integers(3)] += rng.choice([-1.0, 1.0]) * rng.uniform(0.02, 1.0)
+    rate[0, 0] += 0.5
+    rate[-1, 2] -= 0.5
+    if samples >= 60:
+        rate[20, 1], rate[21, 1] = np.nan, 0.6
+        rate[30, 0], rate[31, 0] = np.inf, -0.4
+        rate[40:42, 2] += 0.3
+        rate[45:47, 0] += (1.0, 0.6)      # a kink: its neighbours 0.6 apart, not a spike
+        rate[50:, 1] += 0.2
+    flags = screen._spikes(rate, 0.01)
+    np.testing.assert_array_equal(flags, _numpy_spikes(rate, 0.01))
+    assert samples <= 4 or flags.any()
