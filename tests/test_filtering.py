@@ -190,28 +190,37 @@ def test_the_makespan_hands_the_largest_task_out_first():
     assert filtering.makespan([1.0, 1.0, 1.0], 4) == 1.0
 
 
-@pytest.mark.parametrize("paper, settings", [("paper001", {"fine_duration": 10.0}),
-                                             ("paper003", {"fine_duration": 10.0})])
-def test_an_experiment_declares_whether_its_filters_run_compiled_kernels(paper, settings,
-                                                                         monkeypatch):
-    """``Experiment.filters_compiled``, which decides whether a campaign's parent loads the
-    Numba kernels for its filter workers, is what the default filters do: paper 001's
-    models call the compiled strapdown every epoch, paper 003's call no kernel."""
-    from aligngym.estimators import euler_kernel, strapdown_kernel
+def test_a_campaign_on_workers_loads_the_kernels_once_before_it_forks(short002, monkeypatch):
+    """``estimators.kernels.load_compiled_kernels`` runs in the campaign's process before
+    its preparation workers are forked (they and the filter workers inherit the kernels:
+    every preparation screens its IMU with one), and not at all on one worker; in a fresh
+    process it leaves every compiled kernel loaded."""
+    import subprocess
+    import sys
 
-    exp = experiment(paper, **settings)
-    episodes = prepare_all(exp, episode_seeds(0, 1), None, False, 1, progress=False)
-    calls = []
-    for module in (strapdown_kernel, euler_kernel):
-        for name in ("mechanize", "compensate_increments", "midpoint_points"):
-            if hasattr(module, name):
-                kernel = getattr(module, name)
-                monkeypatch.setattr(module, name, lambda *a, _k=kernel, _n=name:
-                                    calls.append(_n) or _k(*a))
-    errors = exp.start_errors(episodes)
-    for name in exp.default_filters:
-        run_filter_starts(name, {s: errors[s] for s in exp.starts}, episodes, exp)
-    assert bool(calls) == exp.filters_compiled
+    from aligngym.estimators import kernels
+    from aligngym.scenarios.campaign import executors, run_campaign
+
+    exp = short002[0]
+    order = []
+    monkeypatch.setattr(kernels, "load_compiled_kernels", lambda: order.append("load"))
+    monkeypatch.setattr(executors, "usable_cores", lambda: 2)
+    forked = executors._prepare_in_processes
+    monkeypatch.setattr(executors, "_prepare_in_processes",
+                        lambda *args: order.append("fork") or forked(*args))
+    run_campaign(exp, episodes=3, seed=5, filters=["ekf"], workers=2, progress=False)
+    assert order == ["load", "fork"]
+    order.clear()
+    run_campaign(exp, episodes=3, seed=5, filters=["ekf"], workers=1, progress=False)
+    assert order == []
+    code = ("from aligngym.estimators.kernels import load_compiled_kernels as load; load()\n"
+            "from aligngym.estimators import euler_kernel as e, screen_kernel as s, "
+            "strapdown_kernel as k\nfrom aligngym.models import attitude_kernel as a\n"
+            "print([len(f.signatures) for f in (e.midpoint_points, s.spike_candidates, "
+            "k.compensate_increments, k.mechanize, a.quat_scan)])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[1, 1, 1, 1, 1]"
 
 
 def test_a_campaign_uses_no_more_threads_than_its_workers(monkeypatch):

@@ -10,8 +10,7 @@ from pathlib import Path
 from aligngym.estimators.model import whole_steps
 from aligngym.scenarios.campaign.episodes import episode_seeds
 from aligngym.scenarios.campaign.executors import (executor_named, keep_freed_memory,
-                                                   prepare_all, thread_budget,
-                                                   while_waiting)
+                                                   prepare_all, thread_budget)
 from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.campaign.results import CampaignResult
 from aligngym.scenarios.campaign.manifest import campaign_lock, check_manifest
@@ -142,10 +141,9 @@ def _run(experiment: Experiment, episodes: int, seed: int, filters: list[str],
          address: str | None) -> CampaignResult:
     seeds = episode_seeds(seed, episodes)
     keep_freed_memory()
-    if workers > 1 and experiment.filters_compiled:   # loaded while the episodes are
-        # prepared: the filter workers inherit them
+    if workers > 1:        # once here: the preparation and filter workers inherit them
         from aligngym.estimators.kernels import load_compiled_kernels
-        while_waiting(load_compiled_kernels)
+        load_compiled_kernels()
     with thread_budget(workers):          # --workers K: at most K cores, here or in workers
         prepared = prepare_all(experiment, seeds, out, resume, workers, progress, executor,
                                address)

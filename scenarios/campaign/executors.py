@@ -248,18 +248,23 @@ def thread_budget(workers: int) -> Iterator[None]:
     thread; before, a one-worker campaign prepared its episodes on every core, paper 001's
     on 1.9 of two). A pool already held to fewer threads keeps them. Restored when the
     block ends."""
-    from threadpoolctl import threadpool_info, threadpool_limits
+    from threadpoolctl import ThreadpoolController
 
     from aligngym.models import world
     threads = max(1, min(workers, usable_cores()))
     rollout = world.ROLLOUT_THREADS
     world.ROLLOUT_THREADS = min(rollout, threads)
-    # each pool lowered, never raised (a user's OMP_NUM_THREADS=1 stays 1)
-    limits = {pool["prefix"]: min(pool["num_threads"], threads) for pool in threadpool_info()}
+    # each library lowered, never raised (a user's OMP_NUM_THREADS=1 stays 1); by library,
+    # not by name: NumPy's and SciPy's OpenBLAS share one
+    lowered = [(lib, lib.num_threads) for lib in ThreadpoolController().lib_controllers
+               if lib.num_threads > threads]
+    for lib, _ in lowered:
+        lib.set_num_threads(threads)
     try:
-        with threadpool_limits(limits=limits):
-            yield
+        yield
     finally:
+        for lib, before in lowered:
+            lib.set_num_threads(before)
         world.ROLLOUT_THREADS = rollout
 
 

@@ -118,13 +118,6 @@ class Experiment(ABC):
     batch). The filter phase's plan weighs and orders a named filter's tasks by them
     (``filtering.member_points``, ``epoch_points``): paper 004's four filters cost 4.6 to
     15 s each on 32 episodes, which ``member_points`` alone counts as equal."""
-    filters_compiled: bool = True
-    """Its filters' models run the Numba-compiled kernels (the strapdown, paper 002's Euler
-    map): a campaign on more than one worker loads them in its parent while the episodes
-    are prepared, so that the filter workers it forks inherit them (about 0.4 s each
-    otherwise; ``estimators.kernels``). False where no filter needs them (paper 003's
-    models integrate nothing per epoch): the load would only take a core from the
-    preparation. tests/test_filtering.py checks the declaration."""
     filter_settings: frozenset[str] = frozenset({"default_filters", "rms_window",
                                                  "heading_threshold_arcmin"})
     """Settings that concern the filters or the analysis only: the prepared episodes do

@@ -330,7 +330,6 @@ class Paper003Experiment(Experiment):
     member_points = 30.0    # sakf's 6.9 us a member-epoch, 2026-12-06 (bench_member_cost.py)
     filter_costs = {'kf': (7.2, 0.29), 'sakf': (2.6, 0.71), 'makf': (8.4, 0.4), 'imakf': (7.2, 0.47)}
     # (us a member-epoch, ms an epoch), 2026-12-06 (bench_member_cost.py)
-    filters_compiled = False  # its models integrate nothing per epoch (no Numba kernel)
     observation_features = frozenset({"selection-H", "unit-selection-H", "axes",
                                       "conditionally-linear"})
     filter_settings = Experiment.filter_settings | {
