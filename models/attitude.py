@@ -241,6 +241,8 @@ def quat_cumprod(q: np.ndarray, axis: int = 0) -> np.ndarray:
     from aligngym.models.attitude_kernel import quat_scan   # Numba: loaded when run
 
     out = np.moveaxis(np.array(q, dtype=float), axis, 0)
+    if out.shape[-1] != 4:
+        raise ValueError(f"quaternions must be (..., 4), got {np.shape(q)}")
     n = out.shape[0]
     if n < 2 or out.size == 0:
         return np.moveaxis(out, 0, axis)

@@ -7,7 +7,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")   # a zero norm gives NaN, as NumPy's
 def quat_scan(out):
     """Hillis-Steele running products of out (n, m, 4) along its first axis, in place: at
     each pass (step 1, 2, 4 ...) out[i] <- out[i - step] * out[i] for i >= step (the

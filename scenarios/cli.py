@@ -117,8 +117,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:      # a usage error: the usage, and status 2
         parser.print_help()
         return 2
+    from aligngym.scenarios.campaign.executors import keep_freed_memory
     from aligngym.scenarios.config import ConfigError, SettingError
     from aligngym.scenarios.interrupts import remember_interrupts
+
+    keep_freed_memory()          # the command's process only: not a library caller's
 
     try:
         with remember_interrupts():

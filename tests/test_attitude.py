@@ -108,3 +108,15 @@ def test_quat_cumprod_is_the_numpy_scan_to_the_bit_and_the_closed_form(rng, shap
     runs = att.quat_cumprod(np.broadcast_to(att.rotvec_to_quat(step), (n, 4)))
     expected = att.rotvec_to_quat(np.arange(1, n + 1)[:, None] * step)
     assert np.max(np.abs(runs - expected)) < 1e-12 * max(n, 10)
+
+
+def test_quat_cumprod_of_a_zero_norm_is_numpy_s_and_wrong_shapes_are_refused():
+    """A zero (or underflowing) norm gives what the NumPy passes give (inf, NaN), not an
+    error; an array whose last axis is not 4 is refused."""
+    q = np.zeros((3, 4))
+    q[:, 0] = [1.0, 1e-200, 1.0]
+    with np.errstate(all="ignore"):
+        np.testing.assert_array_equal(att.quat_cumprod(q), _numpy_scan(q))
+    assert not np.isfinite(att.quat_cumprod(q)[1:]).any()
+    with pytest.raises(ValueError, match=r"\(\.\.\., 4\)"):
+        att.quat_cumprod(np.ones((5, 8)))

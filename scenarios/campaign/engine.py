@@ -9,7 +9,7 @@ from pathlib import Path
 
 from aligngym.estimators.model import whole_steps
 from aligngym.scenarios.campaign.episodes import episode_seeds
-from aligngym.scenarios.campaign.executors import (executor_named, keep_freed_memory,
+from aligngym.scenarios.campaign.executors import (can_fork_workers, executor_named,
                                                    prepare_all, thread_budget)
 from aligngym.scenarios.campaign.experiment import Experiment
 from aligngym.scenarios.campaign.results import CampaignResult
@@ -140,8 +140,8 @@ def _run(experiment: Experiment, episodes: int, seed: int, filters: list[str],
          out: Path | None, resume: bool, workers: int, progress: bool, executor: str,
          address: str | None) -> CampaignResult:
     seeds = episode_seeds(seed, episodes)
-    keep_freed_memory()
-    if workers > 1:        # once here: the preparation and filter workers inherit them
+    if workers > 1 and executor == "local" and can_fork_workers():
+        # once here: the forked preparation and filter workers inherit them
         from aligngym.estimators.kernels import load_compiled_kernels
         load_compiled_kernels()
     with thread_budget(workers):          # --workers K: at most K cores, here or in workers

@@ -200,10 +200,21 @@ def stop_pool(pool: ProcessPoolExecutor) -> None:
     (which finds them gone, fails what was pending and ends): ``shutdown(wait=False)``
     before killing them let that thread, still running, replace the dead workers of a
     pool whose state was already reset, an error and a hang at exit (CPython gh-132969,
-    fixed after 3.13)."""
+    fixed after 3.13). A worker killed half-way through sending its result leaves that
+    thread reading the rest for ever, as this process holds the result pipe's write end
+    too: once the workers are dead that end is closed, and the thread reads the end of
+    the pipe instead (seen once under load: a Ctrl-C test hung 60 s in ``recv``)."""
     running = list((getattr(pool, "_processes", None) or {}).values())
     for process in running:
         process.terminate()
+    for process in running:
+        process.join(timeout=10)
+    writer = getattr(getattr(pool, "_result_queue", None), "_writer", None)
+    if writer is not None and not any(process.is_alive() for process in running):
+        try:
+            writer.close()
+        except OSError:
+            pass
     pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -221,7 +232,9 @@ def keep_freed_memory() -> None:
     (paper 003's bench, 32 episodes, one worker: 221 000 page faults and 1.2 s of system
     time, 57 000 and 0.6 s with this; the glibc settings MALLOC_MMAP_THRESHOLD_ and
     MALLOC_TRIM_THRESHOLD_). Both are set, or neither: either alone turns off glibc's
-    adaptive threshold and faults more. Nothing is done off glibc, or once done."""
+    adaptive threshold and faults more. Nothing is done off glibc, or once done. For the
+    whole process and its forks, so the command line does it (``cli.main``), not the
+    library's ``run_campaign``: a program that runs a campaign keeps its own settings."""
     global _MEMORY_KEPT
     if _MEMORY_KEPT or not sys.platform.startswith("linux"):
         return
@@ -253,14 +266,16 @@ def thread_budget(workers: int) -> Iterator[None]:
     from aligngym.models import world
     threads = max(1, min(workers, usable_cores()))
     rollout = world.ROLLOUT_THREADS
-    world.ROLLOUT_THREADS = min(rollout, threads)
-    # each library lowered, never raised (a user's OMP_NUM_THREADS=1 stays 1); by library,
-    # not by name: NumPy's and SciPy's OpenBLAS share one
-    lowered = [(lib, lib.num_threads) for lib in ThreadpoolController().lib_controllers
-               if lib.num_threads > threads]
-    for lib, _ in lowered:
-        lib.set_num_threads(threads)
+    lowered = []
     try:
+        world.ROLLOUT_THREADS = min(rollout, threads)
+        # each library lowered, never raised (a user's OMP_NUM_THREADS=1 stays 1); by
+        # library, not by name: NumPy's and SciPy's OpenBLAS share one; one that cannot
+        # say its threads is left alone
+        for lib in ThreadpoolController().lib_controllers:
+            if isinstance(lib.num_threads, int) and lib.num_threads > threads:
+                lowered.append((lib, lib.num_threads))
+                lib.set_num_threads(threads)
         yield
     finally:
         for lib, before in lowered:

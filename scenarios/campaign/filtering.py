@@ -85,8 +85,8 @@ def member_points(name: str, experiment: Experiment) -> float:
     counted as if a point cost what one of paper 002's does, so a filter dearer than the
     floor is under-estimated: the floor errs towards fewer chunks. A filter whose cost the
     experiment has measured (``Experiment.filter_costs``) counts that instead."""
-    if name in experiment.filter_costs:
-        return experiment.filter_costs[name][0] / POINT_US
+    if name in experiment.filter_costs:       # a noisy measure is never below one point
+        return max(experiment.filter_costs[name][0] / POINT_US, 1.0)
     points = filter_entry(name).rule().point_count(experiment.state_count)
     return float(max(points, experiment.member_points))
 
@@ -95,8 +95,8 @@ def epoch_points(name: str, experiment: Experiment) -> float:
     """A filter's fixed cost an epoch (whatever the batch) in points as the plan counts it:
     the experiment's measured one (``Experiment.filter_costs``), else
     ``EPOCH_OVERHEAD_POINTS``."""
-    if name in experiment.filter_costs:
-        return experiment.filter_costs[name][1] * 1e3 / POINT_US
+    if name in experiment.filter_costs:       # a noisy measure is never below zero
+        return max(experiment.filter_costs[name][1] * 1e3 / POINT_US, 0.0)
     return float(EPOCH_OVERHEAD_POINTS)
 
 

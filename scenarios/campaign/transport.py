@@ -5,14 +5,14 @@ through the pipe, read into another and unpickled into a third, each a fresh all
 faulted in page by page (paper 001, 32 episodes, two workers: 246 000 page faults and
 1.4 s of system time against 77 000 and 0.4 s in one process). Within ``shared_arrays`` an
 array of at least ``SHARED_ARRAY_BYTES`` is written once into a file in ``SHARED_DIR``
-(memory, not disk) and the receiver maps that file: the same values, dtype and shape, no
-further copy. Where the file cannot be written (no such directory, too little room: a
-container's /dev/shm is often 64 MB) the array goes through the pipe as before.
+(memory, not disk) and the receiver reads it in one call: the same values, dtype, shape
+and order, one copy instead of three. Where the file cannot be written (no such
+directory, too little room: a container's /dev/shm is often 64 MB) the array goes
+through the pipe as before.
 """
 from __future__ import annotations
 
 import glob
-import mmap
 import os
 import tempfile
 from contextlib import contextmanager
@@ -38,19 +38,21 @@ def _prefix(owner: int) -> str:
 
 def _reduce(array: np.ndarray):
     """How multiprocessing pickles an array within ``shared_arrays``: a shared file for a
-    large one with a plain dtype, the array's own reduction otherwise."""
+    large one of numbers or records (C or Fortran order kept), the array's own reduction
+    otherwise."""
     if (_OWNER is None or array.nbytes < SHARED_ARRAY_BYTES or array.dtype.hasobject
-            or type(array) is not np.ndarray):
+            or array.dtype.kind in "mM" or type(array) is not np.ndarray):
         return array.__reduce__()
-    path = _write(np.ascontiguousarray(array))
+    fortran = array.flags.f_contiguous and not array.flags.c_contiguous
+    path = _write(array.T if fortran else np.ascontiguousarray(array))
     if path is None:
         return array.__reduce__()
-    return _rebuild, (path, array.dtype, array.shape)
+    return _rebuild, (path, array.dtype, array.shape, fortran)
 
 
 def _write(array: np.ndarray) -> str | None:
-    """The array's bytes in a new file of SHARED_DIR, its path; None (nothing left behind)
-    where there is not the room or the file cannot be written."""
+    """The bytes of a C-contiguous array in a new file of SHARED_DIR, its path; None
+    (nothing left behind) where there is not the room or the file cannot be written."""
     try:
         room = os.statvfs(SHARED_DIR)
         if room.f_bavail * room.f_frsize < ROOM_FACTOR * array.nbytes:
@@ -61,26 +63,49 @@ def _write(array: np.ndarray) -> str | None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(memoryview(array).cast("B"))
-    except OSError:
+    except (OSError, ValueError, TypeError, BufferError):
         os.unlink(path)
         return None
     return path
 
 
-def _rebuild(path: str, dtype: np.dtype, shape: tuple[int, ...]) -> np.ndarray:
-    """The array a shared file holds, mapped copy-on-write (writable; a write stays in
-    this process, as in a forked child's), the file removed once mapped."""
+RECEIVED = 0
+"""Arrays this process has received as shared files (for the tests)."""
+
+
+def _rebuild(path: str, dtype: np.dtype, shape: tuple[int, ...],
+             fortran: bool = False) -> np.ndarray:
+    """The array a shared file holds, read in one call (no descriptor is kept: a mapping
+    would hold one per array, hundreds in a campaign), the file removed."""
+    global RECEIVED
     with open(path, "rb") as f:
-        mapped = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_COPY)
+        flat = np.fromfile(f, dtype=dtype, count=int(np.prod(shape, dtype=np.int64)))
     os.unlink(path)
-    return np.frombuffer(mapped, dtype=dtype).reshape(shape)
+    RECEIVED += 1
+    return flat.reshape(shape, order="F" if fortran else "C")
+
+
+def remove_orphans() -> None:
+    """Remove the shared files of blocks whose process is gone (killed before its block's
+    end could remove what no process had read)."""
+    for path in glob.glob(os.path.join(SHARED_DIR, "aligngym-*-*")):
+        try:
+            pid = int(os.path.basename(path).split("-")[1])
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+        except (ValueError, OSError):
+            pass
 
 
 @contextmanager
 def shared_arrays() -> Iterator[None]:
     """Within the block, the pools this process starts (and their workers, which must be
     forked inside it) send large arrays as shared files (see the module docstring). At
-    the end, any file of this block that no process mapped (a task cancelled, a worker
+    the end, any file of this block that no process read (a task cancelled, a worker
     killed) is removed. Nested blocks are the outer one."""
     global _OWNER
     from multiprocessing.reduction import ForkingPickler
@@ -88,6 +113,7 @@ def shared_arrays() -> Iterator[None]:
     if _OWNER is not None:
         yield
         return
+    remove_orphans()
     _OWNER = os.getpid()
     ForkingPickler.register(np.ndarray, _reduce)
     try:
