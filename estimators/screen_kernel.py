@@ -13,25 +13,22 @@ def spike_candidates(rate, floor, size, candidate):
     least its neighbours' (0 beyond the ends) and more than twice the distance between
     its neighbours: the arithmetic of ``screen._spikes`` in the same order."""
     M = rate.shape[0]
+    if M == 0:
+        return
+    across = np.empty(M)                 # how far a sample's neighbours are apart
     for c in range(rate.shape[1]):
-        for i in range(M):
-            size[i, c] = 0.0
+        size[0, c], size[M - 1, c] = 0.0, 0.0
+        across[0], across[M - 1] = np.inf, np.inf
         for i in range(1, M - 1):
             a, x, b = rate[i - 1, c], rate[i, c], rate[i + 1, c]
             a = a if np.isfinite(a) else 0.0
             x = x if np.isfinite(x) else 0.0
             b = b if np.isfinite(b) else 0.0
             size[i, c] = np.abs(x - 0.5 * (a + b))
+            across[i] = np.abs(b - a)
         for i in range(M):
             s = size[i, c]
             before = size[i - 1, c] if i > 0 else 0.0
             after = size[i + 1, c] if i < M - 1 else 0.0
-            if 0 < i < M - 1:
-                a, b = rate[i - 1, c], rate[i + 1, c]
-                a = a if np.isfinite(a) else 0.0
-                b = b if np.isfinite(b) else 0.0
-                across = np.abs(b - a)
-            else:
-                across = np.inf
             candidate[i, c] = (s > floor and s >= before and s >= after
-                               and across < 0.5 * s and np.isfinite(rate[i, c]))
+                               and across[i] < 0.5 * s and np.isfinite(rate[i, c]))

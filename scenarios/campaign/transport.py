@@ -16,7 +16,7 @@ import glob
 import os
 import tempfile
 from contextlib import contextmanager
-from typing import Iterator
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -32,8 +32,23 @@ _OWNER: int | None = None
 the workers it forks; None outside the block."""
 
 
+PREFIX = "aligngym-"
+"""The files' names: PREFIX, the owner's pid, "-", a unique tail."""
+
+
 def _prefix(owner: int) -> str:
-    return f"aligngym-{owner}-"
+    return f"{PREFIX}{owner}-"
+
+
+def _remove(pattern: str, keep: Callable[[str], bool] = lambda path: False) -> None:
+    """Remove the files of SHARED_DIR that match pattern (glob), except those kept;
+    one already gone or not removable is left."""
+    for path in glob.glob(os.path.join(SHARED_DIR, pattern)):
+        if not keep(path):
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
 
 
 def _reduce(array: np.ndarray):
@@ -88,17 +103,18 @@ def _rebuild(path: str, dtype: np.dtype, shape: tuple[int, ...],
 def remove_orphans() -> None:
     """Remove the shared files of blocks whose process is gone (killed before its block's
     end could remove what no process had read)."""
-    for path in glob.glob(os.path.join(SHARED_DIR, "aligngym-*-*")):
-        try:
-            pid = int(os.path.basename(path).split("-")[1])
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
-        except (ValueError, OSError):
-            pass
+    _remove(PREFIX + "*-*", keep=_owner_alive)
+
+
+def _owner_alive(path: str) -> bool:
+    """Whether the process a file's name carries may still exist (or cannot be told)."""
+    try:
+        os.kill(int(os.path.basename(path)[len(PREFIX):].split("-")[0]), 0)
+    except ProcessLookupError:
+        return False
+    except (ValueError, OSError):
+        pass
+    return True
 
 
 @contextmanager
@@ -120,9 +136,5 @@ def shared_arrays() -> Iterator[None]:
         yield
     finally:
         ForkingPickler._extra_reducers.pop(np.ndarray, None)
-        for path in glob.glob(os.path.join(SHARED_DIR, _prefix(_OWNER) + "*")):
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
+        _remove(_prefix(_OWNER) + "*")
         _OWNER = None
