@@ -98,6 +98,25 @@ def load_plugin(name: str) -> None:
                          f"{exc}") from None
 
 
+_EXIT_FROZEN = False
+"""Whether ``_no_collection_at_exit`` has been registered."""
+
+
+def _no_collection_at_exit() -> None:
+    """At this process's exit (atexit, once), its objects frozen out of the garbage
+    collector's reach (``gc.freeze``): the interpreter's shutdown then frees them by their
+    reference counts alone, without the full collections it runs as it clears the modules,
+    which traverse every object a campaign left (0.3-0.4 s of each command's exit for a
+    ten-episode bench, 0.06-0.08 s without). Only cyclic garbage is left unfreed, and the
+    process is ending; every exit handler still runs."""
+    global _EXIT_FROZEN
+    if not _EXIT_FROZEN:
+        import atexit
+        import gc
+        atexit.register(gc.freeze)
+        _EXIT_FROZEN = True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -122,6 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from aligngym.scenarios.interrupts import remember_interrupts
 
     keep_freed_memory()          # the command's process only: not a library caller's
+    _no_collection_at_exit()
 
     try:
         with remember_interrupts():

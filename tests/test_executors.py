@@ -68,16 +68,20 @@ def test_the_command_line_offers_the_built_in_executors():
 
 
 def _worker_threads():
+    import gc
+
     from threadpoolctl import threadpool_info
 
     from aligngym.models import world
-    return world.ROLLOUT_THREADS, [pool["num_threads"] for pool in threadpool_info()]
+    return (world.ROLLOUT_THREADS, [pool["num_threads"] for pool in threadpool_info()],
+            gc.get_freeze_count())
 
 
 def test_a_worker_takes_one_thread_of_each_pool():
     """A local worker (``executors.start_worker``: preparation, filters, figures) runs its
     BLAS/OpenMP pools and MuJoCo's kinematic rollout on one thread: the processes take
-    the cores (two workers with two BLAS threads each prepared episodes 2.5-3.5x slower)."""
+    the cores (two workers with two BLAS threads each prepared episodes 2.5-3.5x slower);
+    the objects it inherited are frozen out of its garbage collections."""
     import multiprocessing
     import os
     from concurrent.futures import ProcessPoolExecutor
@@ -85,5 +89,6 @@ def test_a_worker_takes_one_thread_of_each_pool():
     from aligngym.scenarios.campaign.executors import start_worker
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"),
                              initializer=start_worker, initargs=(os.getpid(),)) as pool:
-        rollout, pools = pool.submit(_worker_threads).result()
+        rollout, pools, frozen = pool.submit(_worker_threads).result()
     assert rollout == 1 and pools and set(pools) == {1}
+    assert frozen > 10_000              # the parent's objects, not a handful
