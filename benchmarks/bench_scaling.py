@@ -4,10 +4,15 @@ preparation, filters, analysis, writing) at 1, 2, 4 ... workers up to this machi
 cores, and at workers beyond them (2x the cores and 16), each in a fresh output
 directory with the truth cache warm (a first, uncounted run fills it). Prints a
 Markdown table of the median wall time of ``--repeat`` runs, the speed-up over one
-worker and the efficiency (speed-up / min(workers, cores)).
+worker and the efficiency (speed-up / min(workers, cores)); above the papers, the
+machine's own ceiling: a fixed amount of work split, as a campaign splits its own, over
+that many processes but no more than the cores, each needing nothing from the others (a
+pure-Python loop; NumPy passes over 8 MB arrays, which share the memory bandwidth and the
+last-level cache). A paper's speed-up is read against these: on a shared or virtual
+machine, two processes seldom get twice one's throughput.
 
 Run: python benchmarks/bench_scaling.py [--papers paper000,...] [--episodes 32]
-     [--repeat 1]
+     [--repeat 1] [--ceiling-repeat 5]
 (all five papers at 32 episodes: about 25 min on 2 cores.)
 """
 from __future__ import annotations
@@ -50,11 +55,41 @@ def bench_seconds(paper: str, episodes: int, workers: int) -> float:
         shutil.rmtree(out, ignore_errors=True)
 
 
+CEILING_JOBS = {
+    "pure-Python loop": "s = 0\nfor i in range({n} * 4_000_000 // {k}): s += i * i % 7",
+    "NumPy, 8 MB arrays": ("import numpy as np\na = np.random.default_rng(0).random(1_000_000)"
+                           "\nfor _ in range({n} * 120 // {k}): b = np.sqrt(a * a + 1.0)"),
+}
+"""The ceiling's jobs: {n} units of work split into {k} processes."""
+
+
+def ceiling_seconds(job: str, processes: int, units: int = 5) -> float:
+    """Wall seconds of ``units`` of a ``CEILING_JOBS`` job split over ``processes``
+    processes running at once."""
+    code = CEILING_JOBS[job].format(n=units, k=processes)
+    start = time.perf_counter()
+    procs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(processes)]
+    if any(p.wait() for p in procs):
+        raise RuntimeError(f"the ceiling job {job!r} failed")
+    return time.perf_counter() - start
+
+
+def row(label: str, times: dict[int, float], cores: int) -> str:
+    """A table row: each count's wall time, speed-up over one and efficiency."""
+    cells = []
+    for w, seconds in times.items():
+        speedup = times[1] / seconds
+        cells.append(f"{seconds:.1f} s, {speedup:.2f}x, {100 * speedup / min(w, cores):.0f} %")
+    return f"| {label} | " + " | ".join(cells) + " |"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--papers", default=",".join(PAPERS))
     parser.add_argument("--episodes", type=int, default=32)
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--ceiling-repeat", type=int, default=5,
+                        help="runs of each ceiling job per count (median)")
     args = parser.parse_args()
     cores = usable_cores()
     counts = worker_counts(cores)
@@ -64,16 +99,16 @@ def main() -> None:
     print("| paper | " + " | ".join(f"{w} worker{'s' if w > 1 else ''}" for w in counts)
           + " |")
     print("|---|" + "---|" * len(counts))
+    for job in CEILING_JOBS:
+        # as a campaign, no more processes than the cores
+        times = {w: statistics.median(ceiling_seconds(job, min(w, cores))
+                                      for _ in range(args.ceiling_repeat)) for w in counts}
+        print(row(f"ceiling: {job}", times, cores), flush=True)
     for paper in args.papers.split(","):
         bench_seconds(paper, args.episodes, cores)          # fills the truth cache
         times = {w: statistics.median(bench_seconds(paper, args.episodes, w)
                                       for _ in range(args.repeat)) for w in counts}
-        cells = []
-        for w in counts:
-            speedup = times[1] / times[w]
-            cells.append(f"{times[w]:.1f} s, {speedup:.2f}x, "
-                         f"{100 * speedup / min(w, cores):.0f} %")
-        print(f"| {paper} | " + " | ".join(cells) + " |", flush=True)
+        print(row(paper, times, cores), flush=True)
 
 
 if __name__ == "__main__":
