@@ -92,3 +92,32 @@ def test_a_worker_takes_one_thread_of_each_pool():
         rollout, pools, frozen = pool.submit(_worker_threads).result()
     assert rollout == 1 and pools and set(pools) == {1}
     assert frozen > 10_000              # the parent's objects, not a handful
+
+
+class _Doubling:
+    """A stand-in experiment whose episode is twice its seed."""
+
+    def prepare_episode(self, seed: int) -> int:
+        return 2 * seed
+
+
+def test_the_preparation_workers_are_forked_whatever_the_default(monkeypatch):
+    """On Linux the preparation pool forks its workers (they inherit the loaded kernels and
+    send arrays as shared files), even where the default start method is another (Python
+    3.14's forkserver)."""
+    import pytest
+
+    from aligngym.scenarios.campaign import executors
+    if not executors.can_fork_workers():
+        pytest.skip("workers are forked on Linux only")
+    contexts, real = [], executors.ProcessPoolExecutor
+
+    def recording(*args, mp_context=None, **kwargs):
+        contexts.append(mp_context)
+        return real(*args, mp_context=mp_context, **kwargs)
+
+    monkeypatch.setattr(executors, "ProcessPoolExecutor", recording)
+    done = {}
+    executors._prepare_in_processes(_Doubling(), [1, 2, 3], done.__setitem__, workers=2)
+    assert done == {1: 2, 2: 4, 3: 6}
+    assert [c.get_start_method() for c in contexts] == ["fork"]

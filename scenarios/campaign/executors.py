@@ -172,9 +172,14 @@ def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
     """Local worker processes (which ignore Ctrl-C), no more than the cores (more would
     only share them); on an interruption or an error the pool is stopped at once, the
     finished episodes being saved already."""
+    import multiprocessing
+    # forked where possible (whatever the default start method): the workers inherit the
+    # loaded kernels (``kernels.load_compiled_kernels``) and send arrays as shared files
+    context = multiprocessing.get_context("fork") if can_fork_workers() else None
     with shared_arrays():             # the episodes come back as shared files
         pool = ProcessPoolExecutor(max_workers=max(1, min(workers, usable_cores(), len(seeds))),
-                                   initializer=start_worker, initargs=(os.getpid(),))
+                                   mp_context=context, initializer=start_worker,
+                                   initargs=(os.getpid(),))
         with stopped_on_error(pool):
             futures = {pool.submit(experiment.prepare_episode, s): s for s in seeds}
             run_waiting_work()
