@@ -6,10 +6,12 @@ directory with the truth cache warm (a first, uncounted run fills it). Prints a
 Markdown table of the median wall time of ``--repeat`` runs, the speed-up over one
 worker and the efficiency (speed-up / min(workers, cores)); above the papers, the
 machine's own ceiling: a fixed amount of work split, as a campaign splits its own, over
-that many processes but no more than the cores, each needing nothing from the others (a
-pure-Python loop; NumPy passes over 8 MB arrays, which share the memory bandwidth and the
-last-level cache). A paper's speed-up is read against these: on a shared or virtual
-machine, two processes seldom get twice one's throughput.
+that many processes but no more than the cores (beyond them, the cores' cell again), each
+needing nothing from the others (a pure-Python loop; NumPy passes over 8 MB arrays, which
+share the memory bandwidth and the last-level cache), timed inside each process without
+its start-up (a campaign forks its workers), the counts interleaved. A paper's speed-up
+is read against these: on a shared or virtual machine, two processes seldom get twice
+one's throughput.
 
 Run: python benchmarks/bench_scaling.py [--papers paper000,...] [--episodes 32]
      [--repeat 1] [--ceiling-repeat 5]
@@ -56,22 +58,43 @@ def bench_seconds(paper: str, episodes: int, workers: int) -> float:
 
 
 CEILING_JOBS = {
-    "pure-Python loop": "s = 0\nfor i in range({n} * 4_000_000 // {k}): s += i * i % 7",
-    "NumPy, 8 MB arrays": ("import numpy as np\na = np.random.default_rng(0).random(1_000_000)"
-                           "\nfor _ in range({n} * 120 // {k}): b = np.sqrt(a * a + 1.0)"),
+    "pure-Python loop": ("", "s = 0\nfor i in range({n} * 4_000_000 // {k}): s += i * i % 7"),
+    "NumPy, 8 MB arrays": ("import numpy as np\na = np.random.default_rng(0).random(1_000_000)",
+                           "for _ in range({n} * 120 // {k}): b = np.sqrt(a * a + 1.0)"),
 }
-"""The ceiling's jobs: {n} units of work split into {k} processes."""
+"""The ceiling's jobs: (set-up, work), the work {n} units split into {k} processes."""
+
+TIMED = """import time
+{setup}
+start = time.perf_counter()
+{work}
+print(time.perf_counter() - start)"""
+"""A ceiling process: its set-up (imports, arrays) outside the time it prints."""
 
 
 def ceiling_seconds(job: str, processes: int, units: int = 5) -> float:
-    """Wall seconds of ``units`` of a ``CEILING_JOBS`` job split over ``processes``
-    processes running at once."""
-    code = CEILING_JOBS[job].format(n=units, k=processes)
-    start = time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(processes)]
-    if any(p.wait() for p in procs):
+    """Seconds of ``units`` of a ``CEILING_JOBS`` job split over ``processes`` processes
+    started at once: the longest of their work alone (an interpreter's start and its
+    imports left out: a campaign forks its workers)."""
+    setup, work = CEILING_JOBS[job]
+    code = TIMED.format(setup=setup, work=work.format(n=units, k=processes))
+    procs = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+             for _ in range(processes)]
+    outputs = [p.communicate()[0] for p in procs]        # every one waited for
+    if any(p.returncode for p in procs):
         raise RuntimeError(f"the ceiling job {job!r} failed")
-    return time.perf_counter() - start
+    return max(float(out) for out in outputs)
+
+
+def ceiling_times(job: str, counts: list[int], cores: int, repeat: int) -> dict[int, float]:
+    """Median seconds of a ceiling job per worker count, the counts interleaved in each
+    round (the machine drifts); beyond the cores the cores' time (a campaign runs no more
+    processes than the cores)."""
+    runs: dict[int, list[float]] = {w: [] for w in counts if w <= cores}
+    for _ in range(repeat):
+        for w in runs:
+            runs[w].append(ceiling_seconds(job, w))
+    return {w: statistics.median(runs[min(w, cores)]) for w in counts}
 
 
 def row(label: str, times: dict[int, float], cores: int) -> str:
@@ -100,9 +123,7 @@ def main() -> None:
           + " |")
     print("|---|" + "---|" * len(counts))
     for job in CEILING_JOBS:
-        # as a campaign, no more processes than the cores
-        times = {w: statistics.median(ceiling_seconds(job, min(w, cores))
-                                      for _ in range(args.ceiling_repeat)) for w in counts}
+        times = ceiling_times(job, counts, cores, args.ceiling_repeat)
         print(row(f"ceiling: {job}", times, cores), flush=True)
     for paper in args.papers.split(","):
         bench_seconds(paper, args.episodes, cores)          # fills the truth cache

@@ -1,30 +1,45 @@
-"""The command's exit: its objects are frozen out of the garbage collector's reach before
-the interpreter's shutdown (``cli._no_collection_at_exit``), once per process."""
+"""The command's exit (``cli._finish_collections``, registered once per process): the
+garbage left at exit is collected (its finalizers run), then the live objects are frozen
+out of the collector's reach before the interpreter's shutdown."""
 import subprocess
 import sys
 
 from aligngym.scenarios import cli
 
+EXITING = """
+import atexit, gc
+# registered before the command's handler, so it runs after it (atexit runs in reverse)
+atexit.register(lambda: print("frozen", gc.get_freeze_count()))
+from aligngym.scenarios.cli import main
+main(["bench", "paper003", "--resume"])
 
-def test_a_command_process_ends_with_its_objects_frozen():
-    # registered before the command's handler, so it runs after it (atexit runs in reverse)
-    code = ("import atexit, gc\n"
-            "atexit.register(lambda: print('frozen', gc.get_freeze_count()))\n"
-            "from aligngym.scenarios.cli import main\n"
-            "main(['bench', 'paper003', '--resume'])\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+class Cycle:
+    def __init__(self):
+        self.me = self
+    def __del__(self):
+        print("finalized")
+
+Cycle()                  # garbage in a cycle: only a collection finalizes it
+"""
+
+
+def test_a_command_process_ends_collected_then_frozen():
+    done = subprocess.run([sys.executable, "-c", EXITING], capture_output=True, text=True,
                           timeout=120)
     assert "--resume needs --out" in done.stderr
-    count = int(done.stdout.split("frozen")[-1])
-    assert count > 10_000            # every object the command left, not a handful
+    finalized, frozen = done.stdout.split()[0], done.stdout.split()[-1]
+    assert finalized == "finalized"        # collected at exit, before the freeze
+    assert int(frozen) > 10_000            # every live object, not a handful
 
 
-def test_the_exit_freeze_is_registered_once(monkeypatch, capsys):
+def test_the_exit_handler_is_registered_once_and_not_run_before_exit(monkeypatch):
     import atexit
     import gc
     registered = []
     monkeypatch.setattr(atexit, "register", registered.append)
     monkeypatch.setattr(cli, "_EXIT_FROZEN", False)
+    frozen = gc.get_freeze_count()
     for _ in range(2):
         assert cli.main(["bench", "paper003", "--resume"]) == 2
-    assert registered == [gc.freeze]
+    assert registered == [cli._finish_collections]
+    assert gc.get_freeze_count() == frozen  # nothing frozen while the process goes on

@@ -101,23 +101,55 @@ class _Doubling:
         return 2 * seed
 
 
+class _Refused(Exception):
+    """Raised by a stand-in pool that only records its start method."""
+
+
+def _recorded_contexts(monkeypatch, start: bool) -> list:
+    """Replace the preparation's ProcessPoolExecutor by one that records its mp_context
+    (and starts the real pool only if ``start``)."""
+    from aligngym.scenarios.campaign import executors
+    contexts, real = [], executors.ProcessPoolExecutor
+
+    def recording(*args, mp_context=None, **kwargs):
+        contexts.append(mp_context)
+        if not start:
+            raise _Refused
+        return real(*args, mp_context=mp_context, **kwargs)
+
+    monkeypatch.setattr(executors, "ProcessPoolExecutor", recording)
+    return contexts
+
+
 def test_the_preparation_workers_are_forked_whatever_the_default(monkeypatch):
     """On Linux the preparation pool forks its workers (they inherit the loaded kernels and
-    send arrays as shared files), even where the default start method is another (Python
-    3.14's forkserver)."""
+    send arrays as shared files), where the default start method is another too (Python
+    3.14's forkserver, whose workers are not the campaign's children)."""
+    import multiprocessing
+
     import pytest
 
     from aligngym.scenarios.campaign import executors
     if not executors.can_fork_workers():
         pytest.skip("workers are forked on Linux only")
-    contexts, real = [], executors.ProcessPoolExecutor
-
-    def recording(*args, mp_context=None, **kwargs):
-        contexts.append(mp_context)
-        return real(*args, mp_context=mp_context, **kwargs)
-
-    monkeypatch.setattr(executors, "ProcessPoolExecutor", recording)
+    monkeypatch.setattr(multiprocessing.context._default_context, "_actual_context",
+                        multiprocessing.get_context("forkserver"))
+    assert multiprocessing.get_start_method() == "forkserver"
+    contexts = _recorded_contexts(monkeypatch, start=True)
     done = {}
     executors._prepare_in_processes(_Doubling(), [1, 2, 3], done.__setitem__, workers=2)
     assert done == {1: 2, 2: 4, 3: 6}
     assert [c.get_start_method() for c in contexts] == ["fork"]
+
+
+def test_the_preparation_workers_are_spawned_where_they_may_not_be_forked(monkeypatch):
+    """Off Linux, or in a Ray driver (``can_fork_workers`` false), the preparation pool
+    spawns its workers, whatever the default start method."""
+    import pytest
+
+    from aligngym.scenarios.campaign import executors
+    monkeypatch.setattr(executors, "can_fork_workers", lambda: False)
+    contexts = _recorded_contexts(monkeypatch, start=False)
+    with pytest.raises(_Refused):
+        executors._prepare_in_processes(_Doubling(), [1, 2], lambda *_: None, workers=2)
+    assert [c.get_start_method() for c in contexts] == ["spawn"]

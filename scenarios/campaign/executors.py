@@ -174,8 +174,10 @@ def _prepare_in_processes(experiment: Experiment, seeds: list[int], finish,
     finished episodes being saved already."""
     import multiprocessing
     # forked where possible (whatever the default start method): the workers inherit the
-    # loaded kernels (``kernels.load_compiled_kernels``) and send arrays as shared files
-    context = multiprocessing.get_context("fork") if can_fork_workers() else None
+    # loaded kernels (``kernels.load_compiled_kernels``) and send arrays as shared files;
+    # elsewhere spawned (a forkserver's workers are not this process's children, and a
+    # Ray driver must not fork)
+    context = multiprocessing.get_context("fork" if can_fork_workers() else "spawn")
     with shared_arrays():             # the episodes come back as shared files
         pool = ProcessPoolExecutor(max_workers=max(1, min(workers, usable_cores(), len(seeds))),
                                    mp_context=context, initializer=start_worker,
@@ -327,10 +329,11 @@ def start_worker(parent: int) -> None:
     directory; its BLAS and OpenMP pools and MuJoCo's kinematic rollout limited to one
     thread (the processes already take the cores: two workers on two cores, each with two
     BLAS threads, prepared an episode 2.5-3.5x slower than one process did); and the
-    objects inherited from the parent frozen (``gc.freeze``), so that the worker's garbage
-    collections traverse only its own (the parent's 230 000 objects made a figure
-    worker's collections a tenth of its drawing time). parent: the parent's pid (a worker
-    whose parent is already gone exits)."""
+    objects it starts with frozen (``gc.freeze``; a forked worker's are the parent's), so
+    that its garbage collections traverse only those it makes (the parent's 230 000
+    objects made a figure worker's collections a tenth of its drawing time; garbage it
+    inherited is not collected, and the worker is short-lived). parent: the parent's pid
+    (a worker whose parent is already gone exits)."""
     from threadpoolctl import threadpool_limits
 
     import gc
