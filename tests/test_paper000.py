@@ -393,3 +393,56 @@ def test_starts_each_known_and_at_most_once(starts):
     exp = Paper000Experiment(starts=starts)
     with pytest.raises(ConfigError, match="^starts = .*at most once$"):
         exp.check(exp.scenario_config())
+
+
+def _timed_copy(result, starts=None):
+    """The campaign with absurd campaign timings (1000 s an epoch) and nothing timed alone;
+    with starts, the coarse start's error under each of these names."""
+    runs = [replace(r, result=replace(r.result, seconds_per_epoch=1e3)) for r in result.runs]
+    if starts is None:
+        return replace(result, runs=runs, timed_alone={})
+    error = next(iter(result.start_errors.values()))
+    return replace(result, experiment=replace(result.experiment, starts=starts), runs=runs,
+                   start_errors={s: error for s in starts}, timed_alone={})
+
+
+@pytest.mark.parametrize("starts, ms", [(None, 5.0), (("coarse", "large"), 2.5)])
+def test_the_computation_claim_times_each_filter_alone_per_start(slip_campaign, monkeypatch,
+                                                                 starts, ms):
+    """The claim's ms/epoch is timed in this process over the whole batch, not read from
+    the campaign's runs (which a plan may split into chunks): with every epoch stepped at
+    a fixed 10 ms, the warm-up epochs left out, per start and episode, 2 episodes: 5 ms
+    (one start), 2.5 ms (two starts in the batch)."""
+    from aligngym.estimators.alignment import AlignmentRun
+    from aligngym.scenarios.campaign.claims import ms_per_epoch
+
+    def step(self, *args, **kwargs):
+        self.k += 1
+        self.compute_seconds += 0.01
+
+    monkeypatch.setattr(AlignmentRun, "step", step)
+    result = _timed_copy(slip_campaign, starts)
+    assert ms_per_epoch("sgkf")(result) == pytest.approx(ms)
+    assert sorted(result.timed_alone) == ["ckf", "ekf", "rdghkf", "sgkf"]
+
+
+def test_the_computation_claim_times_the_filters_in_interleaved_rounds_once(slip_campaign,
+                                                                          monkeypatch):
+    """Every filter of the campaign is timed in each round, one after another (the
+    machine's drift shared among them), the median kept; asked again, nothing is timed."""
+    from aligngym.scenarios.campaign import claims
+    order = []
+
+    def timed_round(result, name):
+        order.append(name)
+        return {"sgkf": [1.0, 9.0, 2.0, 3.0, 2.5]}.get(name, [1.0] * 5)[
+            order.count(name) - 1]
+
+    monkeypatch.setattr(claims, "_timed_round", timed_round)
+    result = _timed_copy(slip_campaign)
+    assert claims.seconds_per_epoch_alone(result, "ckf") == 1.0
+    filters = list(dict.fromkeys(r.filter for r in result.runs))
+    assert sorted(filters) == ["ckf", "ekf", "rdghkf", "sgkf"]
+    assert order == filters * claims.TIMING_ROUNDS
+    assert claims.seconds_per_epoch_alone(result, "sgkf") == 2.5      # the median
+    assert len(order) == 4 * claims.TIMING_ROUNDS

@@ -49,6 +49,9 @@ class CampaignResult:
     runs: list[FilterRun] = field(default_factory=list)
     seed: int | None = None
     """The campaign seed the episode seeds derive from (``episode_seeds``)."""
+    timed_alone: dict[str, float] = field(default_factory=dict, repr=False, compare=False)
+    """Filter name -> its wall time per epoch over the whole batch, s, timed alone in this
+    process (``claims.seconds_per_epoch_alone``), once asked for."""
 
     def summary(self) -> dict:
         """The experiment's JSON summary, with the data faults flagged ("data_faults")."""
