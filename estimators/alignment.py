@@ -30,7 +30,10 @@ class FineResult:
     (B, K, k); diverged (B,), diverged_time (B,) s, diverged_reason; repairs (B,)
     predicted covariances repaired; seconds_per_epoch: wall time per epoch for these
     episodes (a share of their batch's, ``batch_slice``; summed over a batch's chunks);
-    series: the model's own time series (``FilterModel.series``) up to the same epoch.
+    series: the model's own time series (``FilterModel.series``) up to the same epoch;
+    chunks: the batch chunks the run was made of (``concatenate_results``: its
+    seconds_per_epoch sums theirs, each paying the filter's fixed cost an epoch, run
+    beside each other, so that it is not the time of one batch).
     """
 
     t: np.ndarray
@@ -50,6 +53,7 @@ class FineResult:
     (unadapted) S (NaN: none): the innovation test's statistic, chi-square with
     ``nis_dof`` degrees of freedom for a consistent filter."""
     nis_dof: np.ndarray | None = None
+    chunks: int = 1
 
 
 class AlignmentRun:

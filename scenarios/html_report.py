@@ -154,7 +154,7 @@ def _results_summary(path: Path) -> str:
     """Per (filter, start): episodes, how many in each status (converged, not converged,
     diverged, lost: docs/estimators.md), |final error| E, N, U median [p95] and heading
     convergence median [p90] (s), NEES mean (median over episodes), covariance repairs,
-    ms per epoch; over the episodes not diverged."""
+    ms per epoch (``_ms_per_epoch``); over the episodes not diverged."""
     rows = _read_results(path)
     groups: dict[tuple[str, str], list[dict]] = {}
     for row in rows:
@@ -187,12 +187,22 @@ def _results_summary(path: Path) -> str:
                  stat("heading_convergence_s", 90, absolute=False),
                  f"{np.median(nees):.4g}" if nees.size else "-",
                  str(int(sum(_number(r["covariance_repairs"]) for r in group))),
-                 f"{np.nanmean([_number(r['ms_per_epoch']) for r in group]):.3g}"]
+                 _ms_per_epoch(group)]
         body.append("<tr>" + "".join(
             ("<td>" if i < 2 else '<td class="num">') + escape(c) + "</td>"
             for i, c in enumerate(cells)) + "</tr>")
     return ("<table class=\"results\"><tr>" + "".join(f"<th>{escape(h)}</th>" for h in head)
             + "</tr>" + "".join(body) + "</table>")
+
+
+def _ms_per_epoch(group: list[dict]) -> str:
+    """The mean ms per epoch of a filter's rows, and the chunks its batch ran in where
+    more than one (their times summed, each paying the fixed cost an epoch: not the time
+    of one batch; results.csv's ms_per_epoch_chunks, absent from older directories)."""
+    ms = f"{np.nanmean([_number(r['ms_per_epoch']) for r in group]):.3g}"
+    counts = [_number(r.get("ms_per_epoch_chunks") or "1") for r in group]
+    chunks = max((int(c) for c in counts if np.isfinite(c)), default=1)
+    return ms + (f" (sum of {chunks} chunks)" if chunks > 1 else "")
 
 
 def _csv_table(path: Path) -> str:

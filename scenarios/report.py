@@ -23,7 +23,8 @@ TIDY_COLUMNS = (
     + [f"final_sigma_{a}_arcmin" for a in AXES]
     + ["final_pitch_arcmin", "final_roll_arcmin", "final_heading_arcmin",
        "heading_convergence_s", "nees_mean", "nees_final", "status", "status_reason",
-       "diverged", "diverged_time_s", "covariance_repairs", "ms_per_epoch"])
+       "diverged", "diverged_time_s", "covariance_repairs", "ms_per_epoch",
+       "ms_per_epoch_chunks"])
 
 
 def format_tables(result: CampaignResult) -> str:

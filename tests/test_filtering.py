@@ -71,6 +71,16 @@ def test_processes_and_chunks_give_the_runs_of_one_batch_to_the_bit(short002, mo
             np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
         assert a.reason == b.reason
     assert transport.RECEIVED >= received + 3 * 6          # every run's arrays as files
+    # the split filter's time is the sum of its chunks', and says so (the cost column)
+    assert [(r.filter, r.result.chunks) for r in runs] == [
+        (r.filter, 2 if r.filter == "sghkf-3" else 1) for r in serial]
+    from aligngym.scenarios.campaign.results import CampaignResult
+    from aligngym.scenarios.experiments.paper002 import format_tables
+    seeds = list(range(len(episodes)))
+    notes = [format_tables(CampaignResult(exp, seeds, episodes, starts, runs=r)).splitlines()[-1]
+             for r in (runs, serial)]
+    assert "each chunk paying the fixed cost an epoch: sghkf-3 in 2)" in notes[0]
+    assert "chunk" not in notes[1]
 
 
 def test_the_plan_never_splits_below_the_chunk_size_nor_beyond_the_processes(short002):

@@ -515,3 +515,16 @@ def test_figures_are_drawn_in_workers_that_hold_no_lock(tmp_path, monkeypatch):
     assert FigureDrawing.start([]).finish() == []
     with pytest.raises(ValueError, match="figure processes = 0 must be >= 1"):
         FigureDrawing.start([_failing_job], processes=0)
+
+
+def test_the_cost_column_says_when_a_filter_ran_in_chunks():
+    """results.csv's ms_per_epoch of a filter run in chunks is their sum (each paying the
+    fixed cost an epoch): the report's cell says so; a directory from before the column,
+    or a value that is not a count, shows the time alone."""
+    from aligngym.scenarios.html_report import _ms_per_epoch
+    rows = [{"ms_per_epoch": "0.5", "ms_per_epoch_chunks": "2"},
+            {"ms_per_epoch": "0.7", "ms_per_epoch_chunks": "2"}]
+    assert _ms_per_epoch(rows) == "0.6 (sum of 2 chunks)"
+    assert _ms_per_epoch([{"ms_per_epoch": "0.6", "ms_per_epoch_chunks": "1"}]) == "0.6"
+    assert _ms_per_epoch([{"ms_per_epoch": "0.6"}]) == "0.6"
+    assert _ms_per_epoch([{"ms_per_epoch": "0.6", "ms_per_epoch_chunks": "x"}]) == "0.6"

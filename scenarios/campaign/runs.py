@@ -116,12 +116,13 @@ def batch_slice(result: FineResult, index: slice) -> FineResult:
                       seconds_per_epoch=result.seconds_per_epoch * share,
                       series={k: v[index] for k, v in result.series.items()},
                       nis=None if result.nis is None else result.nis[index],
-                      nis_dof=None if result.nis_dof is None else result.nis_dof[index])
+                      nis_dof=None if result.nis_dof is None else result.nis_dof[index],
+                      chunks=result.chunks)
 
 
 def concatenate_results(parts: list[FineResult]) -> FineResult:
     """One result from batch chunks (same epochs); seconds_per_epoch is the chunks'
-    summed compute time per epoch."""
+    summed compute time per epoch, chunks their count."""
     width = max(p.factors.shape[-1] for p in parts)
     factors = [np.pad(p.factors, ((0, 0), (0, 0), (0, width - p.factors.shape[-1])),
                       constant_values=np.nan) for p in parts]
@@ -134,7 +135,8 @@ def concatenate_results(parts: list[FineResult]) -> FineResult:
                       seconds_per_epoch=sum(p.seconds_per_epoch for p in parts),
                       series={name: np.concatenate([p.series[name] for p in parts])
                               for name in parts[0].series},
-                      nis=cat("nis"), nis_dof=cat("nis_dof"))
+                      nis=cat("nis"), nis_dof=cat("nis_dof"),
+                      chunks=sum(p.chunks for p in parts))
 
 
 def episode_metrics(run: FilterRun, b: int, experiment: Experiment,
@@ -162,7 +164,8 @@ def episode_metrics(run: FilterRun, b: int, experiment: Experiment,
         "diverged": bool(run.status[b] == "diverged"),
         "diverged_time_s": float(r.diverged_time[b] - r.t[0]) if r.diverged[b] else None,
         "covariance_repairs": int(r.repairs[b]),
-        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0]})
+        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0],
+        "ms_per_epoch_chunks": int(r.chunks)})
     return row
 
 
