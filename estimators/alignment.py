@@ -32,8 +32,9 @@ class FineResult:
     episodes (a share of their batch's, ``batch_slice``; summed over a batch's chunks);
     series: the model's own time series (``FilterModel.series``) up to the same epoch;
     chunks: the batch chunks the run was made of (``concatenate_results``: its
-    seconds_per_epoch sums theirs, each paying the filter's fixed cost an epoch, run
-    beside each other, so that it is not the time of one batch).
+    seconds_per_epoch sums theirs, each chunk a batch of its own paying the filter's fixed
+    cost an epoch, side by side in worker processes or one after another, so that it is
+    not the time of one batch).
     """
 
     t: np.ndarray

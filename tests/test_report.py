@@ -2,6 +2,7 @@
 statistics against independent oracles, the HTML page's contents, and the page in a
 headless browser."""
 import base64
+import csv
 import json
 import shutil
 from html import escape
@@ -425,6 +426,8 @@ def test_bench_out_is_self_describing_and_reported(bench_out):
     assert settings["versions"]["numpy"] == np.__version__
     assert (out / "tables.txt").read_text() in printed
     assert json.loads((out / "summary.json").read_text())["fine"].keys() == {"ekf"}
+    with open(out / "results.csv") as f:       # one batch: its time is one batch's
+        assert {row["ms_per_epoch_chunks"] for row in csv.DictReader(f)} == {"1"}
     assert main(["report", str(out)]) == 0
     assert (out / "report.html").stat().st_size > 10_000
 

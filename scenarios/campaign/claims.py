@@ -35,13 +35,16 @@ class Claim:
 
 
 TIMED_EPOCHS = 100
-"""Epochs a filter's compute time is measured over in a round (``ms_per_epoch``), after
-``UNTIMED_EPOCHS`` that warm it up."""
+"""Epochs a filter's compute time is measured over in a round (``ms_per_epoch``): the
+first of its run after ``UNTIMED_EPOCHS``."""
 UNTIMED_EPOCHS = 5
+"""Epochs a round runs before it times (first calls, caches)."""
 TIMING_ROUNDS = 5
-"""Rounds of the campaign's filters timed one after another, the median taken per
-filter (paper 000's sgkf against ckf, 20 episodes: one round of 100 epochs each gave
-0.77x and 0.93x; six rounds of 300 epochs, interleaved, 0.86-1.00x, median 0.96x)."""
+"""Rounds of the campaign's filters timed one after another, the least of each filter's
+rounds kept (another process or the host only adds time). Paper 000's sgkf against ckf,
+20 episodes: one round of 100 epochs each gave 0.77x and 0.93x, which would have put
+the claim on either side of its 0.8x; five interleaved rounds, their median, 0.84-0.99x
+in four runs; the least of them 0.95-0.99x in four timings of one campaign."""
 
 
 def ms_per_epoch(filter_name: str) -> Callable[[object], float]:
@@ -56,23 +59,26 @@ def ms_per_epoch(filter_name: str) -> Callable[[object], float]:
 
 
 def seconds_per_epoch_alone(result, filter_name: str) -> float:
-    """The filter's wall time per epoch over the batch of one start (the campaign's
-    episodes; a campaign's runs are per start), in this process with nothing else of the
-    campaign running: the batch of all starts run for ``TIMED_EPOCHS`` epochs after
-    ``UNTIMED_EPOCHS`` (fewer for a shorter run), divided by the starts, in
-    ``TIMING_ROUNDS`` rounds that each time every filter of the campaign (the machine's
-    drift shared among them), the median of the rounds. Timed once per result
-    (``CampaignResult.timed_alone``)."""
-    import statistics
+    """The filter's wall time per epoch and start over the campaign's episodes, in this
+    process on one BLAS thread (as a campaign's worker) with nothing else of the campaign
+    running: the batch of all starts run for its first ``TIMED_EPOCHS`` epochs after
+    ``UNTIMED_EPOCHS`` (fewer for a shorter run; not the whole run, whose later epochs may
+    cost otherwise), divided by the starts, in ``TIMING_ROUNDS`` rounds that each time
+    every filter of the campaign not timed yet (the machine's drift shared among them), the
+    least of the rounds. About 9 s for paper 000's three filters on 20 episodes, growing
+    with the episodes. Timed once per result and filter (``CampaignResult.timed_alone``)."""
+    from aligngym.scenarios.campaign.executors import thread_budget
 
     if filter_name not in result.timed_alone:
-        names = list(dict.fromkeys([r.filter for r in result.runs] + [filter_name]))
+        names = [name for name in dict.fromkeys([r.filter for r in result.runs]
+                                                + [filter_name])
+                 if name not in result.timed_alone]
         rounds: dict[str, list[float]] = {name: [] for name in names}
-        for _ in range(TIMING_ROUNDS):
-            for name in names:
-                rounds[name].append(_timed_round(result, name))
-        result.timed_alone.update({name: statistics.median(times)
-                                   for name, times in rounds.items()})
+        with thread_budget(1):
+            for _ in range(TIMING_ROUNDS):
+                for name in names:
+                    rounds[name].append(_timed_round(result, name))
+        result.timed_alone.update({name: min(times) for name, times in rounds.items()})
     return result.timed_alone[filter_name]
 
 

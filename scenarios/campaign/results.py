@@ -49,9 +49,11 @@ class CampaignResult:
     runs: list[FilterRun] = field(default_factory=list)
     seed: int | None = None
     """The campaign seed the episode seeds derive from (``episode_seeds``)."""
-    timed_alone: dict[str, float] = field(default_factory=dict, repr=False, compare=False)
-    """Filter name -> its wall time per epoch over the whole batch, s, timed alone in this
-    process (``claims.seconds_per_epoch_alone``), once asked for."""
+    timed_alone: dict[str, float] = field(default_factory=dict, init=False, repr=False,
+                                          compare=False)
+    """Filter name -> its wall time per epoch and start over the campaign's episodes, s,
+    timed alone in this process (``claims.seconds_per_epoch_alone``), once asked for (a
+    copy made by ``dataclasses.replace`` starts empty)."""
 
     def summary(self) -> dict:
         """The experiment's JSON summary, with the data faults flagged ("data_faults")."""

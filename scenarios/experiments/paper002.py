@@ -128,14 +128,14 @@ def format_tables(result: CampaignResult) -> str:
              f"{exp.fine_duration:g} s, {len(result.seeds)} runs: final error (arcmin)")
     extra = {name: f"{s['convergence_s']:10.1f}{s['points']:8d}{s['us_per_epoch']:10.1f}"
              for name, s in summary.items()}
-    chunked = [f"{run.filter} in {run.result.chunks}" for run in result.runs
-               if run.result.chunks > 1]
+    chunked = list(dict.fromkeys(f"{run.filter} in {run.result.chunks}"
+                                 for run in result.runs if run.result.chunks > 1))
     return (format_fine_table(result, START, title, extra,
                               f"{'conv (s)':>10s}{'points':>8s}{'us/epoch':>10s}")
             + f"\n(heading convergence: error within {exp.heading_threshold_arcmin:g}' "
             "from then on; us/epoch per episode, batched"
-            + (f"; run in chunks beside each other, their times summed, each chunk paying "
-               f"the fixed cost an epoch: {', '.join(chunked)}" if chunked else "") + ")")
+            + (f"; run in chunks, their times summed, each chunk paying the fixed cost "
+               f"an epoch: {', '.join(chunked)}" if chunked else "") + ")")
 
 
 def state_errors(result: FineResult, episodes: list[Paper002Episode],
