@@ -85,16 +85,16 @@ def seconds_per_epoch_alone(result, filter_name: str) -> float:
 
 def _timed_round(result, filter_name: str) -> float:
     """One round of ``seconds_per_epoch_alone``: seconds per epoch and start."""
+    import numpy as np
+
     from aligngym.estimators.alignment import AlignmentRun
-    from aligngym.estimators.catalogue import filter_entry, make_filter
-    from aligngym.scenarios.campaign.runs import member_batch
+    from aligngym.scenarios.campaign.runs import member_batch, members_filter
 
     experiment = result.experiment
     starts = {s: result.start_errors[s] for s in experiment.starts}
     members, start_errors = member_batch(starts, result.episodes)
-    filt = make_filter(filter_name, **experiment.filter_options())
-    run = AlignmentRun(filt, experiment.model(members, start_errors,
-                                              filter_entry(filter_name).model))
+    run = AlignmentRun(*members_filter(filter_name, np.arange(len(members)), members,
+                                       start_errors, experiment))
     warm = min(UNTIMED_EPOCHS, max(run.epochs - 1, 0))
     for _ in range(warm):
         run.step()

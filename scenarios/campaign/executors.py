@@ -334,9 +334,9 @@ def start_worker(parent: int) -> None:
     objects made a figure worker's collections a tenth of its drawing time; garbage it
     inherited is not collected, and the worker is short-lived). parent: the parent's pid
     (a worker whose parent is already gone exits)."""
-    from threadpoolctl import threadpool_limits
-
     import gc
+
+    from threadpoolctl import threadpool_limits
 
     from aligngym.models import world
     gc.freeze()                        # the parent's objects: out of the collector's reach

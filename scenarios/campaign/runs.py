@@ -10,6 +10,8 @@ import numpy as np
 
 from aligngym.estimators.alignment import FineResult, run_alignment
 from aligngym.estimators.catalogue import filter_entry, make_filter
+from aligngym.estimators.filters import GaussianFilter
+from aligngym.estimators.model import FilterModel
 from aligngym.estimators.metrics import StatusRule, convergence_time, euler_error, misalignment
 from aligngym.models.units import arcmin
 from aligngym.scenarios.campaign.episodes import PreparedEpisode
@@ -87,13 +89,22 @@ def member_batch(start_errors: dict[str, np.ndarray], episodes: list[PreparedEpi
     return [episodes[i % B] for i in range(B * len(start_errors))], starts
 
 
+def members_filter(name: str, index: np.ndarray, members: list[PreparedEpisode],
+                   starts: np.ndarray, experiment: Experiment, **model_options: Any
+                   ) -> tuple[GaussianFilter, FilterModel]:
+    """The named filter and its model over the members ``index`` of a batch
+    (``member_batch``), as a campaign makes them, not yet run."""
+    filt = make_filter(name, **experiment.filter_options())
+    return filt, experiment.model([members[i] for i in index], starts[index],
+                                  filter_entry(name).model, **model_options)
+
+
 def run_members(name: str, index: np.ndarray, members: list[PreparedEpisode],
                 starts: np.ndarray, experiment: Experiment, **model_options: Any
                 ) -> FineResult:
     """The named filter over the members ``index`` of a batch (``member_batch``)."""
-    filt = make_filter(name, **experiment.filter_options())
-    return run_alignment(filt, experiment.model([members[i] for i in index], starts[index],
-                                                filter_entry(name).model, **model_options))
+    return run_alignment(*members_filter(name, index, members, starts, experiment,
+                                         **model_options))
 
 
 def analyse_starts(name: str, start_names: list[str], result: FineResult,
