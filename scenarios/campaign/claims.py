@@ -44,7 +44,7 @@ TIMING_ROUNDS = 5
 rounds kept (another process or the host only adds time). Paper 000's sgkf against ckf,
 20 episodes: one round of 100 epochs each gave 0.77x and 0.93x, which would have put
 the claim on either side of its 0.8x; five interleaved rounds, their median, 0.84-0.99x
-in four runs; the least of them 0.95-0.99x in four timings of one campaign, 0.90x
+in four runs; the least of them 0.95-1.02x in six timings of two campaigns, 0.90x
 in a `reproduce`."""
 
 
