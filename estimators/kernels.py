@@ -6,13 +6,15 @@ import numpy as np
 
 def load_compiled_kernels() -> None:
     """Every compiled kernel (the IMU screen's spike candidates, the attitude scan, the
-    strapdown's compensation and mechanization, paper 002's Euler map) loaded into this
-    process from Numba's on-disk cache, by one call each on a few samples. About 0.4 s,
+    strapdown's compensation and mechanization, paper 002's Euler map, paper 004's
+    Runge-Kutta step) loaded into this process from Numba's on-disk cache, by one call
+    each on a few samples. About 0.4 s,
     most of it Numba's own start-up: a campaign on more than one worker pays it once in
     its parent before it forks, and its preparation and filter workers inherit the
     kernels instead of each paying it in its first episode or filter (paper 001, two
     workers: 0.5 s of each filter worker's 1.6-3.8 s)."""
     from aligngym.estimators.euler_kernel import midpoint_points
+    from aligngym.estimators.rotation_vector_kernel import runge_kutta_points
     from aligngym.estimators.screen_kernel import spike_candidates
     from aligngym.estimators.strapdown_kernel import compensate_increments, mechanize
     from aligngym.models.attitude_kernel import quat_scan
@@ -32,3 +34,7 @@ def load_compiled_kernels() -> None:
     x = np.zeros((1, 1, 10))
     midpoint_points(x, 0.01, np.eye(3)[None], np.zeros((1, 3)), np.zeros((1, 3)),
                     np.empty_like(x))
+    x = np.zeros((1, 1, 15))
+    vectors = np.zeros((3, 1, 3))
+    runge_kutta_points(x, 0.01, True, np.zeros((3, 1, 3, 3)), *[vectors] * 6,
+                       np.zeros((3, 1)), np.zeros((3, 1)), np.empty_like(x))

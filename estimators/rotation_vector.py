@@ -17,12 +17,38 @@ from aligngym.estimators.model import (Epoch, FilterModel, Observation, Transiti
 from aligngym.estimators.loose_gps import GpsInsInputs
 from aligngym.estimators.rotation_vector_dynamics import (DP, DV, EPS, LAYOUT, N_STATES, NABLA,
                                                           PHI, InsQuantities,
-                                                          classic_derivative, reset_jacobian,
-                                                          st_derivative, st_to_classic,
+                                                          reset_jacobian, st_to_classic,
                                                           stekf_matrix)
 from aligngym.estimators.strapdown import body_rate_at
 from aligngym.models.attitude import cross, dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
 from aligngym.models.earth import earth_rate_n, metres_per_geodetic, transport_rate_n
+
+
+def _stages(quantities: tuple[InsQuantities, ...]) -> tuple[np.ndarray, ...]:
+    """The INS's quantities at a step's start, middle and end (each with one point axis,
+    ``RotationVectorGnssModel._quantities``) stacked for ``runge_kutta_step``: C_b_p
+    (3, B, 3, 3), f_b, v, omega_ie, omega_en, g and d(L, lambda, h)/dt (3, B, 3), lat, h
+    (3, B)."""
+    rates = [q.rates() + (q.position_rate(),) for q in quantities]
+    fields = ([q.C_b_p for q in quantities], [q.f_b for q in quantities],
+              [q.v for q in quantities], *zip(*rates))
+    return (*(np.stack([a[:, 0] for a in field]) for field in fields),
+            np.stack([q.lat[:, 0] for q in quantities]),
+            np.stack([q.h[:, 0] for q in quantities]))
+
+
+def runge_kutta_step(x: np.ndarray, T: float, transformed: bool,
+                     stages: tuple[np.ndarray, ...]) -> np.ndarray:
+    """One classical Runge-Kutta step of T s of the error state at points x (B, ..., 15)
+    of ``st_derivative`` (transformed) or ``classic_derivative`` with the INS's quantities
+    of ``_stages``, compiled (``rotation_vector_kernel``: 4-12x faster than the NumPy
+    stages on 31 points of 1-32 episodes; the same numbers within 1e-12, a test)."""
+    from aligngym.estimators.rotation_vector_kernel import runge_kutta_points  # Numba
+    x = np.asarray(x, dtype=float)
+    points = np.ascontiguousarray(x.reshape(x.shape[0], -1, N_STATES))
+    out = np.empty_like(points)
+    runge_kutta_points(points, float(T), bool(transformed), *stages, out)
+    return out.reshape(x.shape)
 
 
 @dataclass
@@ -144,14 +170,10 @@ class RotationVectorGnssModel(FilterModel):
             FT = stekf_matrix(quantities) * T
             Phi = np.eye(N_STATES) + FT + 0.5 * FT @ FT
             return Transition(noise=Q, matrix=Phi)
-        derivative = st_derivative if self.variant == "st" else classic_derivative
+        stages, transformed = _stages((q0, qm, q1)), self.variant == "st"
 
         def fn(x: np.ndarray) -> np.ndarray:
-            a = derivative(x, q0)
-            b = derivative(x + 0.5 * T * a, qm)
-            c = derivative(x + 0.5 * T * b, qm)
-            d = derivative(x + T * c, q1)
-            return x + T / 6.0 * (a + 2 * b + 2 * c + d)
+            return runge_kutta_step(x, T, transformed, stages)
 
         return Transition(noise=Q, fn=fn)
 

@@ -222,12 +222,13 @@ def test_a_campaign_on_workers_loads_the_kernels_once_before_it_forks(short002, 
     assert order == []
     code = ("from aligngym.estimators.kernels import load_compiled_kernels as load; load()\n"
             "from aligngym.estimators import euler_kernel as e, screen_kernel as s, "
-            "strapdown_kernel as k\nfrom aligngym.models import attitude_kernel as a\n"
+            "strapdown_kernel as k, rotation_vector_kernel as r\n"
+            "from aligngym.models import attitude_kernel as a\n"
             "print([len(f.signatures) for f in (e.midpoint_points, s.spike_candidates, "
-            "k.compensate_increments, k.mechanize, a.quat_scan)])")
+            "k.compensate_increments, k.mechanize, a.quat_scan, r.runge_kutta_points)])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
-    assert out.strip() == "[1, 1, 1, 1, 1]"
+    assert out.strip() == "[1, 1, 1, 1, 1, 1]"
 
 
 def test_a_campaign_uses_no_more_threads_than_its_workers(monkeypatch):

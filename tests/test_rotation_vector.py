@@ -303,3 +303,40 @@ def test_the_reset_jacobian_is_the_derivative_of_the_reset(variant):
                   for e in np.eye(N_STATES)], -1)
     np.testing.assert_allclose(reset_jacobian(x_hat, variant), G, atol=1e-8)
     assert not np.allclose(G, np.eye(N_STATES), atol=1e-2)      # the reset is not P kept
+
+
+@pytest.mark.parametrize("transformed", [True, False], ids=["st", "classic"])
+def test_the_compiled_runge_kutta_step_is_the_numpy_one(transformed):
+    """The filters' process map runs compiled (``rotation_vector_kernel``): on random error
+    states (attitude errors from 0 to 3 rad, zero among them), attitudes, forces,
+    velocities, latitudes, heights and steps, its Runge-Kutta step is the one of the
+    NumPy derivatives (``st_derivative``, ``classic_derivative``) within 4e-12 of the
+    component's largest increment and 4e-15 of its value (the worst here 8e-13, in the
+    classic velocity's cancelling terms; NumPy's AVX-512 tangent and power differ from
+    the C library's by an ulp), and keeps the points' shape."""
+    from aligngym.estimators.rotation_vector import _stages, runge_kutta_step
+    derivative = st_derivative if transformed else classic_derivative
+    rng = np.random.default_rng(4)
+    for trial in range(40):
+        B, P = rng.integers(1, 5), rng.integers(1, 33)
+        x = rng.normal(size=(B, P, N_STATES)) * np.r_[[rng.choice([1e-6, 1e-3, 0.1, 1.0, 3.0])]
+                                                      * 3, [0.5] * 3, 1e-6, 1e-6, 3.0,
+                                                      [1e-5] * 3, [1e-3] * 3]
+        if trial % 7 == 0:
+            x[..., PHI] = 0.0
+        stages = [InsQuantities(C_b_p=rotvec_to_dcm(rng.normal(size=(B, 1, 3))),
+                                f_b=rng.normal(size=(B, 1, 3)) * [0.3, 0.3, 9.8],
+                                v=rng.normal(size=(B, 1, 3)) * 5.0,
+                                lat=rng.uniform(-1.3, 1.3, (B, 1)),
+                                lon=rng.uniform(-3.0, 3.0, (B, 1)),
+                                h=rng.normal(size=(B, 1)) * 100.0) for _ in range(3)]
+        T = float(rng.choice([0.01, 0.1, 1.0]))
+        a = derivative(x, stages[0])
+        b = derivative(x + 0.5 * T * a, stages[1])
+        c = derivative(x + 0.5 * T * b, stages[1])
+        d = derivative(x + T * c, stages[2])
+        expected = x + T / 6.0 * (a + 2 * b + 2 * c + d)
+        got = runge_kutta_step(x, T, transformed, _stages(stages))
+        scale = np.abs(expected - x).reshape(-1, N_STATES).max(0)
+        assert np.all(np.abs(got - expected) <= 4e-12 * scale + 4e-15 * np.abs(x)), trial
+        assert runge_kutta_step(x[:, 0], T, transformed, _stages(stages)).shape == (B, N_STATES)
