@@ -16,7 +16,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      ", ".join(experiment_names()) + "), a comma-separated list, or all")
     rpr.add_argument("--episodes", type=integer_option("--episodes"), metavar="N",
                      help="episodes per campaign (default: each paper's own, "
-                     "Experiment.reproduce; all of them take about 3 min on 2 cores)")
+                     "Experiment.reproduce; all of them take 1.5-2 min on 2 cores)")
     rpr.add_argument("--seed", type=seed_option, default=None, metavar="S",
                      help="campaign seed (default: each paper's own)")
     rpr.add_argument("--out", metavar="DIR", help="write DIR/claims.md (the page, with the "
