@@ -9,6 +9,7 @@ transformation, derivatives and matrices are ``rotation_vector_dynamics``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -22,6 +23,25 @@ from aligngym.estimators.rotation_vector_dynamics import (DP, DV, EPS, LAYOUT, N
 from aligngym.estimators.strapdown import body_rate_at
 from aligngym.models.attitude import cross, dcm_to_quat, quat_to_dcm, rotvec_to_dcm, skew
 from aligngym.models.earth import earth_rate_n, metres_per_geodetic, transport_rate_n
+
+
+Derivative = Callable[[np.ndarray, InsQuantities], np.ndarray]
+"""An error-state derivative x (..., 15) -> x_dot (..., 15) given the INS's quantities
+(``st_derivative``, ``classic_derivative``)."""
+
+
+def numpy_runge_kutta_step(derivative: Derivative, x: np.ndarray, T: float,
+                           quantities: tuple[InsQuantities, ...]) -> np.ndarray:
+    """One classical Runge-Kutta step of T s of ``derivative`` at points x (B, P, 15), the
+    INS's quantities at the step's start, middle and end (each (B, 1, ...)), in NumPy: the
+    reference of the compiled ``runge_kutta_step``, and how a variant of the model's rows
+    is integrated."""
+    q0, qm, q1 = quantities
+    a = derivative(x, q0)
+    b = derivative(x + 0.5 * T * a, qm)
+    c = derivative(x + 0.5 * T * b, qm)
+    d = derivative(x + T * c, q1)
+    return x + T / 6.0 * (a + 2 * b + 2 * c + d)
 
 
 def _stages(quantities: tuple[InsQuantities, ...]) -> tuple[np.ndarray, ...]:
@@ -98,10 +118,17 @@ class RotationVectorGnssModel(FilterModel):
     after every update (6.8) and the state reset."""
 
     def __init__(self, inputs: GpsInsInputs, tuning: RotationVectorTuning, variant: str = "st",
-                 feedback_below: float | None = None) -> None:
+                 feedback_below: float | None = None,
+                 derivative: Derivative | None = None) -> None:
+        """derivative: a NumPy error-state derivative to integrate in place of the
+        variant's compiled one (``numpy_runge_kutta_step``; a study of the model's rows),
+        for the nonlinear variants."""
         if variant not in VARIANTS:
             raise ValueError(f"variant {variant!r}; valid: " + ", ".join(VARIANTS))
+        if derivative is not None and variant == "st-linear":
+            raise ValueError("variant 'st-linear' has no derivative to replace")
         self.inputs, self.tuning, self.variant = inputs, tuning, variant
+        self.derivative = derivative
         self.feedback_below = feedback_below
         self.layout = LAYOUT
         B, K = inputs.dtheta.shape[:2]
@@ -170,10 +197,16 @@ class RotationVectorGnssModel(FilterModel):
             FT = stekf_matrix(quantities) * T
             Phi = np.eye(N_STATES) + FT + 0.5 * FT @ FT
             return Transition(noise=Q, matrix=Phi)
-        stages, transformed = _stages((q0, qm, q1)), self.variant == "st"
+        if self.derivative is not None:
+            derivative, quantities = self.derivative, (q0, qm, q1)
 
-        def fn(x: np.ndarray) -> np.ndarray:
-            return runge_kutta_step(x, T, transformed, stages)
+            def fn(x: np.ndarray) -> np.ndarray:
+                return numpy_runge_kutta_step(derivative, x, T, quantities)
+        else:
+            stages, transformed = _stages((q0, qm, q1)), self.variant == "st"
+
+            def fn(x: np.ndarray) -> np.ndarray:
+                return runge_kutta_step(x, T, transformed, stages)
 
         return Transition(noise=Q, fn=fn)
 

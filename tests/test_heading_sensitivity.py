@@ -230,7 +230,7 @@ def test_paper004_classic_model_documents_a_false_heading_sensitivity(sway):
         np.testing.assert_allclose(column, expected, atol=ZERO)
 
 
-def test_paper004_classic_ukf_lands_inside_its_sigma_on_ideal_data(monkeypatch):
+def test_paper004_classic_ukf_lands_inside_its_sigma_on_ideal_data():
     """The consequence, on ideal data (floor 0) of a still, level IMU with GNSS (zero
     velocity, 0.02 m/s noise) from (3, -3, 50) deg, 150 s at 1 s. While the feedback's
     reset kept P, the classic ``ukf-3n`` ended 104' off (4.8 of its own 22' sigma) and the
@@ -271,9 +271,8 @@ def test_paper004_classic_ukf_lands_inside_its_sigma_on_ideal_data(monkeypatch):
 
     ends = []
     for derivative in (classic, still_base_rows):
-        monkeypatch.setattr(rv, "classic_derivative", derivative)  # the model's name for it
-        r = run_alignment(make_filter("ukf-3n"), rv.RotationVectorGnssModel(inputs, tuning,
-                                                                            "classic"))
+        r = run_alignment(make_filter("ukf-3n"), rv.RotationVectorGnssModel(
+            inputs, tuning, "classic", derivative=derivative))
         error = misalignment(np.broadcast_to(C_BN, (1, K + 1, 3, 3)), r.C_s_n)
         assert not r.diverged.any()
         ends.append((abs(error[0, -1, 2]), r.sigma_n[0, -1, 2]))
