@@ -1,11 +1,13 @@
 """Paper 004's error-state process map compiled with Numba: the classical Runge-Kutta step
-of ``rotation_vector.RotationVectorModel.transition`` over every point of every episode in
-one loop, each stage's derivative (``rotation_vector_dynamics.st_derivative`` or
+of ``rotation_vector.RotationVectorGnssModel.transition`` over every point of every episode
+in one loop, each stage's derivative (``rotation_vector_dynamics.st_derivative`` or
 ``classic_derivative``, with the earth model of ``models.earth``) written per point in the
-order of the NumPy expressions. The NumPy functions stay the reference: the two agree
-within 1e-13 (a test; NumPy's AVX-512 sine and power differ from the C library's by an
-ulp). A module of its own so that importing the estimators does not load Numba before a
-filter runs."""
+order of the NumPy expressions. The NumPy functions stay the reference
+(``rotation_vector.numpy_runge_kutta_step``): the two agree within 4e-12 of each
+component's largest increment (a test; NumPy's AVX-512 tangent and power differ from the C
+library's by an ulp). Notation as in (6.1)-(6.5): unmarked, the INS's quantities; primed,
+those at the true position and velocity the error state implies. A module of its own so
+that importing the estimators does not load Numba before a filter runs."""
 import numpy as np
 from numba import njit
 
@@ -34,13 +36,18 @@ def _truth_rates(lat, h, v0, v1, v2, out):
 
 @njit(cache=True)
 def _derivative(x, transformed, C, f, v, w_ie, w_en, g, rate, lat, h, Cp, t, out):
-    """x_dot (15,) at one point x (15,) for one instant's INS quantities: C = C_b^p (3, 3),
-    f the specific force (3,), v (3,), w_ie, w_en, g (3,) at the INS's position, rate its
-    d(L, lambda, h)/dt, lat (rad), h (m); Cp (3, 3) and t (12,) are scratch."""
+    """x_dot (15,) at one point x (15,) = [phi (rad), dv (the ST form if transformed, else
+    the classic one; m/s, ENU), dL, dlambda (rad), dh (m), eps (rad/s), nabla (m/s^2), body
+    frame], for one instant's INS quantities: C = C_b^p (3, 3); f (3,) the bias-compensated
+    specific force, body frame, m/s^2; v (3,) m/s ENU; w_ie, w_en (3,) rad/s and g (3,)
+    m/s^2 ENU at the INS's position; rate (3,) its d(L, lambda, h)/dt (rad/s, rad/s, m/s);
+    lat (rad), h (m). Cp (3, 3) and t (12,) are scratch: C_p^n, and ``_truth_rates``'
+    omega_ie' (t[0:3]), omega_en' (t[3:6]), g' (t[6:9]) and position rate' (t[9:12])."""
     p0, p1, p2 = x[0], x[1], x[2]
     angle = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
     # C_p^n = exp([phi x]) through the quaternion (models.attitude.rotvec_to_dcm)
     qw = np.cos(0.5 * angle)
+    # sin(angle / 2) / angle as NumPy's sinc(angle / 2 pi) / 2 computes it, to its bits
     y = np.pi * (angle / (2.0 * np.pi)) if angle != 0.0 else np.pi * 1.0e-20
     s = 0.5 * (np.sin(y) / y)
     qx, qy, qz = s * p0, s * p1, s * p2
@@ -71,6 +78,9 @@ def _derivative(x, transformed, C, f, v, w_ie, w_en, g, rate, lat, h, Cp, t, out
     o0 = ((w_ie[0] + w_en[0]) - (Cp[0, 0] * u0 + Cp[1, 0] * u1 + Cp[2, 0] * u2)) - e0
     o1 = ((w_ie[1] + w_en[1]) - (Cp[0, 1] * u0 + Cp[1, 1] * u1 + Cp[2, 1] * u2)) - e1
     o2 = ((w_ie[2] + w_en[2]) - (Cp[0, 2] * u0 + Cp[1, 2] * u1 + Cp[2, 2] * u2)) - e2
+    n0 = C[0, 0] * x[12] + C[0, 1] * x[13] + C[0, 2] * x[14]      # C_b^p nabla
+    n1 = C[1, 0] * x[12] + C[1, 1] * x[13] + C[1, 2] * x[14]
+    n2 = C[2, 0] * x[12] + C[2, 1] * x[13] + C[2, 2] * x[14]
     if angle < 1e-4:
         k = 1.0 / 12.0 + angle ** 2 / 720.0
     else:
@@ -84,9 +94,6 @@ def _derivative(x, transformed, C, f, v, w_ie, w_en, g, rate, lat, h, Cp, t, out
     if transformed:
         # (6.4): C_b^p nabla + g - C_n^p g' - (w_ie - C_n^p w_ie') x v~ + v~ x (C_b^p eps)
         #        - (w_ie + w_en + C_n^p w_ie' - C_b^p eps) x dv_ST
-        n0 = C[0, 0] * x[12] + C[0, 1] * x[13] + C[0, 2] * x[14]
-        n1 = C[1, 0] * x[12] + C[1, 1] * x[13] + C[1, 2] * x[14]
-        n2 = C[2, 0] * x[12] + C[2, 1] * x[13] + C[2, 2] * x[14]
         G0 = Cp[0, 0] * t[6] + Cp[1, 0] * t[7] + Cp[2, 0] * t[8]
         G1 = Cp[0, 1] * t[6] + Cp[1, 1] * t[7] + Cp[2, 1] * t[8]
         G2 = Cp[0, 2] * t[6] + Cp[1, 2] * t[7] + Cp[2, 2] * t[8]
@@ -110,9 +117,6 @@ def _derivative(x, transformed, C, f, v, w_ie, w_en, g, rate, lat, h, Cp, t, out
         fp0 = C[0, 0] * f[0] + C[0, 1] * f[1] + C[0, 2] * f[2]
         fp1 = C[1, 0] * f[0] + C[1, 1] * f[1] + C[1, 2] * f[2]
         fp2 = C[2, 0] * f[0] + C[2, 1] * f[1] + C[2, 2] * f[2]
-        n0 = C[0, 0] * x[12] + C[0, 1] * x[13] + C[0, 2] * x[14]
-        n1 = C[1, 0] * x[12] + C[1, 1] * x[13] + C[1, 2] * x[14]
-        n2 = C[2, 0] * x[12] + C[2, 1] * x[13] + C[2, 2] * x[14]
         a0, a1, a2 = 2 * w_ie[0] + w_en[0], 2 * w_ie[1] + w_en[1], 2 * w_ie[2] + w_en[2]
         b0, b1, b2 = 2 * t[0] + t[3], 2 * t[1] + t[4], 2 * t[2] + t[5]
         out[3] = (((((fp0 - (Cp[0, 0] * fp0 + Cp[0, 1] * fp1 + Cp[0, 2] * fp2))

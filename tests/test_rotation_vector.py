@@ -337,12 +337,12 @@ def test_the_reset_jacobian_is_the_derivative_of_the_reset(variant):
 @pytest.mark.parametrize("transformed", [True, False], ids=["st", "classic"])
 def test_the_compiled_runge_kutta_step_is_the_numpy_one(transformed):
     """The filters' process map runs compiled (``rotation_vector_kernel``): on random error
-    states (attitude errors from 0 to 3 rad, zero among them), attitudes, forces,
-    velocities, latitudes, heights and steps, its Runge-Kutta step is the one of the
-    NumPy derivatives (``st_derivative``, ``classic_derivative``) within 4e-12 of the
-    component's largest increment and 4e-15 of its value (the worst here 8e-13, in the
-    classic velocity's cancelling terms; NumPy's AVX-512 tangent and power differ from
-    the C library's by an ulp), and keeps the points' shape."""
+    states (rotation vectors from zero to about 12 rad), attitudes, forces, velocities,
+    latitudes to 75 deg, heights and steps, its Runge-Kutta step is the one of the NumPy
+    derivatives (``st_derivative``, ``classic_derivative``) within 4e-12 of the
+    component's largest increment and 4e-15 of its value (NumPy's AVX-512 tangent and
+    power differ from the C library's by an ulp; the classic velocity's terms cancel),
+    keeps the points' shape, and refuses points of another batch than its stages'."""
     from aligngym.estimators.rotation_vector import (_stages, numpy_runge_kutta_step,
                                                      runge_kutta_step)
     derivative = st_derivative if transformed else classic_derivative
@@ -366,3 +366,5 @@ def test_the_compiled_runge_kutta_step_is_the_numpy_one(transformed):
         scale = np.abs(expected - x).reshape(-1, N_STATES).max(0)
         assert np.all(np.abs(got - expected) <= 4e-12 * scale + 4e-15 * np.abs(x)), trial
         assert runge_kutta_step(x[:, 0], T, transformed, _stages(stages)).shape == (B, N_STATES)
+    with pytest.raises(ValueError, match="stages of"):
+        runge_kutta_step(np.zeros((B + 1, 2, N_STATES)), T, transformed, _stages(stages))
