@@ -8,11 +8,11 @@ def load_compiled_kernels() -> None:
     """Every compiled kernel (the IMU screen's spike candidates, the attitude scan, the
     strapdown's compensation and mechanization, paper 002's Euler map, paper 004's
     Runge-Kutta step) loaded into this process from Numba's on-disk cache, by one call
-    each on a few samples. About 0.4 s,
-    most of it Numba's own start-up: a campaign on more than one worker pays it once in
-    its parent before it forks, and its preparation and filter workers inherit the
-    kernels instead of each paying it in its first episode or filter (paper 001, two
-    workers: 0.5 s of each filter worker's 1.6-3.8 s)."""
+    each on a few samples. About 0.4-0.5 s, most of it Numba's own start-up: a campaign
+    on more than one worker pays it once in its parent before it forks, and its
+    preparation and filter workers inherit the kernels instead of each paying it in its
+    first episode or filter (paper 001, two workers: 0.5 s of each filter worker's
+    1.6-3.8 s)."""
     from aligngym.estimators.euler_kernel import midpoint_points
     from aligngym.estimators.rotation_vector_kernel import runge_kutta_points
     from aligngym.estimators.screen_kernel import spike_candidates

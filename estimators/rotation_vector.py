@@ -62,8 +62,8 @@ def runge_kutta_step(x: np.ndarray, T: float, transformed: bool,
     """One classical Runge-Kutta step of T s of the error state at points x (B, ..., 15)
     of ``st_derivative`` (transformed) or ``classic_derivative`` with the INS's quantities
     of ``_stages`` for B episodes, compiled (``rotation_vector_kernel``: on 31 points,
-    8-12x faster than ``numpy_runge_kutta_step`` for one episode, 4-7x for 32; the same numbers
-    within 4e-12 of each component's largest increment, a test)."""
+    8-12x faster than ``numpy_runge_kutta_step`` for one episode, 4-7x for 32; the same
+    numbers within 4e-12 of each component's largest increment, a test)."""
     from aligngym.estimators.rotation_vector_kernel import runge_kutta_points  # Numba
     x = np.asarray(x, dtype=float)
     B = stages[-1].shape[1]

@@ -5,8 +5,8 @@ in one loop, each stage's derivative (``rotation_vector_dynamics.st_derivative``
 order of the NumPy expressions. The NumPy functions stay the reference
 (``rotation_vector.numpy_runge_kutta_step``): the two agree within 4e-12 of each
 component's largest increment (a test; NumPy's AVX-512 tangent and power differ from the C
-library's by an ulp). Notation as in (6.1)-(6.5): unmarked, the INS's quantities; primed,
-those at the true position and velocity the error state implies. A module of its own so
+library's by an ulp). Notation as in (6.1)-(6.5): unmarked (the velocity v~), the INS's
+quantities; primed, those at the true position and velocity the error state implies. A module of its own so
 that importing the estimators does not load Numba before a filter runs."""
 import numpy as np
 from numba import njit
