@@ -84,6 +84,10 @@ def test_summary_has_the_issue_shape(campaign, tmp_path):
     for key in ("convergence_s", "diverged_fraction", "nees_mean", "heading_inside_3sigma"):
         assert key in entry
     assert set(summary["fine"]) == {"stukf", "stekf", "ukf-3n", "ekf"}
+    # the time an episode-epoch, as results.csv says it (not the whole batch's)
+    run = next(r for r in campaign.runs if r.filter == "stukf")
+    assert entry["ms_per_epoch"] == pytest.approx(run.result.seconds_per_epoch * 1e3 / 2)
+    assert entry["ms_per_epoch_chunks"] == 1
     table = campaign.experiment.format_tables(campaign)
     assert "stukf" in table and "NEES/9" in table
     paths = campaign.experiment.plots(campaign, tmp_path)

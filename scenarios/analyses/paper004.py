@@ -24,8 +24,10 @@ def run_metrics(run, episodes: list[GnssEpisode], experiment: Experiment) -> dic
     run's end if never; median and 90th percentile), the status fractions
     (``metrics.status_fractions``), the fraction whose final heading error is beyond 1
     deg or that diverged numerically, NEES (9 states; mean over the same window, then
-    over episodes: results.csv's nees_mean per episode), the fraction of epochs whose heading error lies inside the
-    filter's own 3 sigma."""
+    over episodes: results.csv's nees_mean per episode), the fraction of epochs whose
+    heading error lies inside the filter's own 3 sigma, and the filter's wall time an
+    episode-epoch (ms, results.csv's: its batch's share; ms_per_epoch_chunks, the chunks the
+    batch ran in, whose times it sums)."""
     r = run.result
     t = r.t - r.t[0] + episodes[0].fine_start          # scenario time of the epochs
     window = experiment.accuracy_window(r.t - r.t[0], episodes[0].fine_start)
@@ -53,7 +55,9 @@ def run_metrics(run, episodes: list[GnssEpisode], experiment: Experiment) -> dic
         "nees_dof": experiment.nees_dof(),
         "heading_inside_3sigma": float(inside[sel].mean()),
         "final_heading_error_deg": float(np.sqrt(np.mean(run.error_n[sel, -1, 2] ** 2)) / deg),
-        "ms_per_epoch": r.seconds_per_epoch * 1e3,
+        # an episode's share, as results.csv's (its batch's chunks summed: ``chunks``)
+        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0],
+        "ms_per_epoch_chunks": int(r.chunks),
     }
 
 
