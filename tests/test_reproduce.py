@@ -24,7 +24,7 @@ def test_every_paper_declares_its_claims_with_a_reason_where_they_may_fail():
 def test_paper003_claims_share_two_campaigns_and_the_page_is_written(tmp_path,
                                                                      monkeypatch):
     """The command's contract is under test (the claims' grouping into campaigns, their
-    numbers measured, the pages written), not the alignment: the plan ``reproduce``
+    numbers measured and the time that took said, the pages written), not the alignment: the plan ``reproduce``
     makes (``claims_plan``, 2 episodes) with 60 s of fine alignment, not the paper's
     600 s. The paper setup's campaign draws all its figures; the default setup's, whose
     figures tests/test_report.py draws and checks (paper003's campaign), only the
@@ -42,10 +42,14 @@ def test_paper003_claims_share_two_campaigns_and_the_page_is_written(tmp_path,
             return jobs
         return [j for j in jobs if j.func is plot_error_bands]      # fine_error_*.png
     monkeypatch.setattr(report, "figure_jobs", figure_jobs)
+    import aligngym.scenarios.reproduce as reproducing
+    monkeypatch.setattr(reproducing, "MEASURING_SAID_S", 0.0)  # every measuring time said
     log = []
     verdicts, text = reproduce(["paper003"], episodes=2, out_dir=tmp_path, workers=1,
                                log=log.append, plan=plan)
-    assert len(log) == 2            # default and paper setups: one campaign each
+    # default and paper setups: one campaign each, and the time its claims took after it
+    assert [line.split(": ")[1].split(" ")[0:2] for line in log] == [
+        ["campaign", "1"], ["its", "claims"], ["campaign", "2"], ["its", "claims"]]
     assert len(verdicts) == len(experiment_class("paper003").claims)
     assert {v.claim.setup for v in verdicts} == {"default", "paper"}
     for v in verdicts:
