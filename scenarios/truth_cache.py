@@ -10,10 +10,10 @@ of simulating them.
 Entries live in ``$ALIGNGYM_TRUTH_CACHE`` (default ``$XDG_CACHE_HOME/aligngym/truth``,
 else ``~/.cache/aligngym/truth``; ``off`` disables the cache), one .npz per entry, named
 by a hash of what decides it: the simulation's inputs, the simulation code
-(``simulation_code_sha256``, taken when the process loaded it) and the versions of
-MuJoCo, NumPy, SciPy and the machine's architecture, so a changed simulation never loads
-an old entry (edit the code between runs, not during one). An entry is written whole or not at all
-(``atomic``); one that does not load is removed and simulated again; a cache that cannot
+(``TRUTH_SOURCES``, hashed when the process loaded it: a filter's or an experiment's edit
+keeps the entries) and the versions of MuJoCo, NumPy, SciPy and the machine's
+architecture, so a changed simulation never loads an old entry (edit the code between
+runs, not during one). An entry is written whole or not at all (``atomic``); one that does not load is removed and simulated again; a cache that cannot
 be written (a full disk, no permission) is reported once and the run goes on without it.
 The directory is kept under ``TRUTH_CACHE_BYTES`` by removing the least recently used
 entries. An entry is computed under a lock file (``flock``) that its holder removes
@@ -52,19 +52,24 @@ def cache_directory() -> Path | None:
     return Path(base) / "aligngym" / "truth"
 
 
-SIMULATION_SOURCES = ("models", "sensors", "estimators", "scenarios/experiments",
-                      "scenarios/campaign", "scenarios/simulate.py", "scenarios/config.py",
-                      "scenarios/config_keys.py", "scenarios/config_tables.py",
-                      "scenarios/worlds.py", "scenarios/world_truth.py")
-"""The package's code that prepares an episode: any change to it is a new bank and new
-truth entries."""
+TRUTH_SOURCES = ("models", "sensors", "scenarios/simulate.py", "scenarios/config.py",
+                 "scenarios/config_keys.py", "scenarios/config_tables.py",
+                 "scenarios/worlds.py", "scenarios/world_truth.py")
+"""The package's code a simulation runs (``scenarios.simulate`` and every module it imports,
+at any depth; a test): any change to it is new truth entries."""
+SIMULATION_SOURCES = TRUTH_SOURCES + ("estimators", "scenarios/experiments",
+                                      "scenarios/campaign")
+"""The package's code that prepares an episode (the truth's, the sensors' errors, the
+coarse alignment and the screen): any change to it is a new bank, and a campaign's
+episodes are not resumed by other code (``simulation_versions``). A filter's or an
+experiment's edit keeps the truth entries: they depend on ``TRUTH_SOURCES`` alone."""
 
 
-def simulation_code_sha256() -> str:
-    """A hash of ``SIMULATION_SOURCES`` (the .py files, in name order)."""
+def _sources_sha256(parts: tuple[str, ...]) -> str:
+    """A hash of the package's .py files under parts (in name order)."""
     root = Path(__file__).resolve().parents[1]        # the package's source root
     digest = hashlib.sha256()
-    for part in SIMULATION_SOURCES:
+    for part in parts:
         path = root / part
         files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
         for f in files:
@@ -73,38 +78,58 @@ def simulation_code_sha256() -> str:
     return digest.hexdigest()
 
 
+def simulation_code_sha256() -> str:
+    """A hash of ``SIMULATION_SOURCES`` (the .py files, in name order)."""
+    return _sources_sha256(SIMULATION_SOURCES)
+
+
 _CODE_SHA256: str | None = None
-"""The simulation code's hash when the first simulation module was loaded
+"""The hash of ``SIMULATION_SOURCES`` when the first simulation module was loaded
 (``remember_code``): the code a process runs, even if the files change under it."""
+_TRUTH_SHA256: str | None = None
+"""The hash of ``TRUTH_SOURCES``, taken with it."""
 
 
 def remember_code() -> None:
     """Hash the simulation code now (``scenarios.simulate`` calls it when imported, so
     forked workers inherit it): editing the files during a run cannot label old numbers
     with the new code's hash."""
-    global _CODE_SHA256
+    global _CODE_SHA256, _TRUTH_SHA256
     if _CODE_SHA256 is None:
         _CODE_SHA256 = simulation_code_sha256()
+        _TRUTH_SHA256 = _sources_sha256(TRUTH_SOURCES)
 
 
-@lru_cache(maxsize=1)
-def simulation_versions() -> str:
-    """The simulation code's hash and the library versions that key the cache (and a
-    campaign's manifest)."""
+def _library_versions() -> str:
     import platform
 
     import mujoco
     import scipy
+    return (f"mujoco {mujoco.__version__} numpy {np.__version__} scipy {scipy.__version__} "
+            f"{platform.machine()}")
+
+
+@lru_cache(maxsize=1)
+def simulation_versions() -> str:
+    """The preparation code's hash (``SIMULATION_SOURCES``) and the library versions that
+    key a campaign's manifest."""
     remember_code()
-    return (f"{_CODE_SHA256} mujoco {mujoco.__version__} numpy {np.__version__} "
-            f"scipy {scipy.__version__} {platform.machine()}")
+    return f"{_CODE_SHA256} {_library_versions()}"
+
+
+@lru_cache(maxsize=1)
+def truth_versions() -> str:
+    """The simulation code's hash (``TRUTH_SOURCES``) and the library versions that key
+    the cache's entries."""
+    remember_code()
+    return f"{_TRUTH_SHA256} {_library_versions()}"
 
 
 def entry_name(kind: str, key: tuple) -> str:
     """The entry's file name: kind and a hash of key (its repr: dataclasses, tuples and
     floats print every digit; ``cached_arrays`` does not cache a key holding an array)
-    with the code and library versions."""
-    digest = hashlib.sha256(f"{kind} {key!r} {simulation_versions()}".encode()).hexdigest()
+    with the simulation code's and the libraries' versions (``truth_versions``)."""
+    digest = hashlib.sha256(f"{kind} {key!r} {truth_versions()}".encode()).hexdigest()
     return f"{kind}-{digest[:24]}.npz"
 
 

@@ -76,9 +76,13 @@ def test_a_cache_that_cannot_be_written_is_reported_once(tmp_path, monkeypatch):
 
 
 def test_off_and_another_code_version_use_no_entry(cache, monkeypatch):
+    """Other simulation code (``truth_versions``) names other entries; other preparation
+    code alone (a filter's or an experiment's edit: ``simulation_versions``) the same."""
     assert truth_cache.cache_directory() == cache
     name = truth_cache.entry_name("k", (1.0, "x"))
-    monkeypatch.setattr(truth_cache, "simulation_versions", lambda: "another simulation code")
+    monkeypatch.setattr(truth_cache, "simulation_versions", lambda: "another filter's code")
+    assert truth_cache.entry_name("k", (1.0, "x")) == name
+    monkeypatch.setattr(truth_cache, "truth_versions", lambda: "another simulation code")
     assert truth_cache.entry_name("k", (1.0, "x")) != name
     monkeypatch.setenv(truth_cache.TRUTH_CACHE_ENV, "off")
     assert truth_cache.cache_directory() is None
@@ -158,9 +162,9 @@ def test_the_least_recently_used_entries_go_first(tmp_path):
 
 def test_the_code_hash_covers_every_module_a_simulation_runs():
     """Every package module ``scenarios.simulate`` imports (at any depth, the sensors'
-    modules too) is in ``SIMULATION_SOURCES``, so that editing it changes the truth
-    cache's and the bank's key; only the cache itself, the file writer and the names'
-    registry are not."""
+    modules too, function-level imports included) is in ``TRUTH_SOURCES``, so that editing
+    it changes the truth cache's key (and, as ``SIMULATION_SOURCES`` holds them all, the
+    bank's); only the cache itself, the file writer and the names' registry are not."""
     import sys
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).parent))
@@ -172,8 +176,23 @@ def test_the_code_hash_covers_every_module_a_simulation_runs():
         if name not in seen:
             seen.add(name)
             stack.extend(graph[name])
-    covered = [ROOT / part for part in truth_cache.SIMULATION_SOURCES]
+    assert set(truth_cache.TRUTH_SOURCES) <= set(truth_cache.SIMULATION_SOURCES)
+    covered = [ROOT / part for part in truth_cache.TRUTH_SOURCES]
     outside = sorted(str(files[m].relative_to(ROOT)) for m in seen
                      if not any(files[m] == c or c in files[m].parents for c in covered))
     assert outside == ["scenarios/atomic.py", "scenarios/registry.py",
                        "scenarios/truth_cache.py"]
+
+
+def test_a_filters_edit_keeps_the_truth_entries(monkeypatch):
+    """The entries are keyed on the simulation code alone (``TRUTH_SOURCES``): an edit of a
+    filter, an experiment or the campaign code changes the bank's and the manifest's hash
+    (``SIMULATION_SOURCES``), not the entries' names."""
+    monkeypatch.setattr(truth_cache, "_sources_sha256", lambda parts: "|".join(parts))
+    monkeypatch.setattr(truth_cache, "_CODE_SHA256", None)
+    monkeypatch.setattr(truth_cache, "_TRUTH_SHA256", None)
+    truth_cache.remember_code()
+    for part in ("estimators", "scenarios/experiments", "scenarios/campaign"):
+        assert part in truth_cache._CODE_SHA256.split("|")
+        assert part not in truth_cache._TRUTH_SHA256.split("|")
+    assert truth_cache._TRUTH_SHA256.split("|") == list(truth_cache.TRUTH_SOURCES)
