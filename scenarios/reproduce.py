@@ -82,13 +82,14 @@ def run_claims(plan: list[ClaimCampaign], out_dir: Path | None = None,
             verdicts.append(Verdict(paper, claim, numbers, ok))
         seconds = time.perf_counter() - measuring
         if seconds >= MEASURING_SAID_S:   # e.g. a computation claim timing each filter alone
-            log(f"{paper}: its claims measured in {seconds:.0f} s more")
+            log(f"{paper}: campaign {number[paper]}'s claims measured in {seconds:.0f} s "
+                "(after it)")
     return verdicts
 
 
 MEASURING_SAID_S = 1.0
-"""A campaign's claims measured in this long or more (s) are said to be, beside the
-campaign's own time: a claim that times its filters runs them again."""
+"""Claims taking at least this long (s) to measure are logged after their campaign's time
+(a claim that times its filters runs them again)."""
 
 
 def format_numbers(numbers: dict[str, float]) -> str:

@@ -12,7 +12,7 @@ else ``~/.cache/aligngym/truth``; ``off`` disables the cache), one .npz per entr
 by a hash of what decides it: the simulation's inputs, the simulation code
 (``TRUTH_SOURCES``, hashed when the process loaded it: a filter's or an experiment's edit
 keeps the entries) and the versions of MuJoCo, NumPy, SciPy and the machine's
-architecture, so a changed simulation never loads an old entry (edit the code between
+architecture (and Numba's), so a changed simulation never loads an old entry (edit the code between
 runs, not during one). An entry is written whole or not at all (``atomic``); one that does not load is removed and simulated again; a cache that cannot
 be written (a full disk, no permission) is reported once and the run goes on without it.
 The directory is kept under ``TRUTH_CACHE_BYTES`` by removing the least recently used
@@ -78,6 +78,17 @@ def _sources_sha256(parts: tuple[str, ...]) -> str:
     return digest.hexdigest()
 
 
+def in_truth_sources(path: str | Path | None) -> bool:
+    """Whether the file at path is one of ``TRUTH_SOURCES`` (its edits change the
+    entries' names)."""
+    if path is None:
+        return False
+    root = Path(__file__).resolve().parents[1]
+    path = Path(path).resolve()
+    return any(path == root / part or (root / part) in path.parents
+               for part in TRUTH_SOURCES)
+
+
 def simulation_code_sha256() -> str:
     """A hash of ``SIMULATION_SOURCES`` (the .py files, in name order)."""
     return _sources_sha256(SIMULATION_SOURCES)
@@ -95,18 +106,25 @@ def remember_code() -> None:
     forked workers inherit it): editing the files during a run cannot label old numbers
     with the new code's hash."""
     global _CODE_SHA256, _TRUTH_SHA256
-    if _CODE_SHA256 is None:
-        _CODE_SHA256 = simulation_code_sha256()
-        _TRUTH_SHA256 = _sources_sha256(TRUTH_SOURCES)
+    if _CODE_SHA256 is None or _TRUTH_SHA256 is None:
+        code, truth = simulation_code_sha256(), _sources_sha256(TRUTH_SOURCES)
+        _CODE_SHA256, _TRUTH_SHA256 = code, truth      # both or neither
 
 
 def _library_versions() -> str:
+    """MuJoCo's, NumPy's, SciPy's and Numba's versions (the attitude scan is compiled) and
+    the machine's architecture."""
     import platform
+    from importlib.metadata import PackageNotFoundError, version
 
     import mujoco
     import scipy
+    try:
+        numba = version("numba")
+    except PackageNotFoundError:
+        numba = "none"
     return (f"mujoco {mujoco.__version__} numpy {np.__version__} scipy {scipy.__version__} "
-            f"{platform.machine()}")
+            f"numba {numba} {platform.machine()}")
 
 
 @lru_cache(maxsize=1)

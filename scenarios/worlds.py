@@ -117,12 +117,14 @@ class World(ABC):
 
     @classmethod
     def cache_kind(cls, kind: str) -> str:
-        """The truth-cache kind of this world's runs: ``kind`` for the package's worlds
-        (their code is in the cache's code hash), with a hash of the defining module's
-        source for any other, so that editing a user's world never serves its old
+        """The truth-cache kind of this world's runs: ``kind`` for a world whose module is in
+        the cache's code hash (``truth_cache.TRUTH_SOURCES``: the shipped worlds), with a
+        hash of the defining module's source for any other (a user's, or one the package
+        defines elsewhere, in an experiment say), so that editing it never serves its old
         truth."""
+        from aligngym.scenarios.truth_cache import in_truth_sources
         module = sys.modules.get(cls.__module__)
-        if cls.__module__.startswith("aligngym.") or module is None:
+        if module is None or in_truth_sources(getattr(module, "__file__", None)):
             return kind
         try:
             source = inspect.getsource(module)

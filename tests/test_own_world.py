@@ -161,11 +161,16 @@ def test_its_keys_and_worlds_are_checked_in_one_line(pier, tmp_path):
 def test_a_taken_world_name_is_refused_and_a_users_world_caches_under_its_code(tmp_path):
     """A second class under the name "car" is refused; a world from outside the package
     is cached under a kind that carries a hash of its module's source, so an edited world
-    never gets its old truth (the package's worlds are in the cache's code hash)."""
+    never gets its old truth (the shipped worlds are in the cache's code hash; a world the
+    package defines elsewhere is not)."""
     with pytest.raises(ValueError, match="world name 'car' is taken by aligngym.scenarios."
                                          "worlds.CarOnRoad"):
         register_world(type("Car", (Pier,), {"name": "car"}))
     assert WORLDS["car"].cache_kind("car-seeded") == "car-seeded"
+    # a world the package defines outside the simulation's code (an experiment's, say)
+    elsewhere = type("Elsewhere", (Pier,), {"name": "elsewhere",
+                                            "__module__": "aligngym.estimators.rules"})
+    assert elsewhere.cache_kind("elsewhere").startswith("elsewhere-")
     import importlib.util
     import sys
     kinds = []

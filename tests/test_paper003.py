@@ -207,8 +207,9 @@ def test_the_same_command_twice_reuses_the_campaign_and_an_edited_scenario_is_re
 
 
 def test_a_campaign_of_other_simulation_code_is_refused(tmp_path, capsys, monkeypatch):
-    """The manifest holds the simulation code's and the libraries' hash (the truth
-    cache's key): episodes simulated by other code are not resumed."""
+    """The manifest holds the hash of the code that prepares an episode and of the
+    libraries (``simulation_versions``): episodes prepared by other code are not
+    resumed."""
     from aligngym.scenarios import truth_cache
     out = tmp_path / "c"
     base = ["bench", "paper003", "--episodes", "1", "--filters", "kf", "--workers", "1",

@@ -49,7 +49,7 @@ def test_paper003_claims_share_two_campaigns_and_the_page_is_written(tmp_path,
                                log=log.append, plan=plan)
     # default and paper setups: one campaign each, and the time its claims took after it
     assert [line.split(": ")[1].split(" ")[0:2] for line in log] == [
-        ["campaign", "1"], ["its", "claims"], ["campaign", "2"], ["its", "claims"]]
+        ["campaign", "1"], ["campaign", "1's"], ["campaign", "2"], ["campaign", "2's"]]
     assert len(verdicts) == len(experiment_class("paper003").claims)
     assert {v.claim.setup for v in verdicts} == {"default", "paper"}
     for v in verdicts:

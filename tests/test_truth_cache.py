@@ -196,3 +196,23 @@ def test_a_filters_edit_keeps_the_truth_entries(monkeypatch):
         assert part in truth_cache._CODE_SHA256.split("|")
         assert part not in truth_cache._TRUTH_SHA256.split("|")
     assert truth_cache._TRUTH_SHA256.split("|") == list(truth_cache.TRUTH_SOURCES)
+
+
+def test_the_entries_names_follow_the_simulation_code_alone(monkeypatch):
+    """``entry_name`` through ``truth_versions``: another hash of ``TRUTH_SOURCES`` names
+    other entries, another hash of the preparation code alone the same ones."""
+    def clear():
+        truth_cache.truth_versions.cache_clear()
+        truth_cache.simulation_versions.cache_clear()
+    truth_cache.remember_code()
+    clear()
+    try:
+        name = truth_cache.entry_name("k", (1.0, "x"))
+        monkeypatch.setattr(truth_cache, "_CODE_SHA256", "another filter's code")
+        clear()
+        assert truth_cache.entry_name("k", (1.0, "x")) == name
+        monkeypatch.setattr(truth_cache, "_TRUTH_SHA256", "another simulation's code")
+        clear()
+        assert truth_cache.entry_name("k", (1.0, "x")) != name
+    finally:
+        clear()                     # no name of the patched hashes outlives the test

@@ -25,9 +25,9 @@ def run_metrics(run, episodes: list[GnssEpisode], experiment: Experiment) -> dic
     (``metrics.status_fractions``), the fraction whose final heading error is beyond 1
     deg or that diverged numerically, NEES (9 states; mean over the same window, then
     over episodes: results.csv's nees_mean per episode), the fraction of epochs whose
-    heading error lies inside the filter's own 3 sigma, and the filter's wall time an
-    episode-epoch (ms, results.csv's: its batch's share; ms_per_epoch_chunks, the chunks the
-    batch ran in, whose times it sums)."""
+    heading error lies inside the filter's own 3 sigma, and the filter's compute time an
+    episode-epoch (ms, results.csv's: its batch's share, summed over the
+    ms_per_epoch_chunks chunks the batch ran in; before 2026-12-07 the whole batch's)."""
     r = run.result
     t = r.t - r.t[0] + episodes[0].fine_start          # scenario time of the epochs
     window = experiment.accuracy_window(r.t - r.t[0], episodes[0].fine_start)

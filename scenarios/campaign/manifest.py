@@ -73,8 +73,8 @@ def manifest_of(experiment: Experiment, seed: int) -> dict:
     """What decides a campaign's episodes, as campaign.json holds it: the paper, the
     experiment's settings, the seed, a hash of the resolved scenario (the file's content
     with every preset it pulls in: an edited file is another campaign) and a hash of the
-    simulation code and the library versions (the truth cache's key: episodes simulated
-    by other code are another campaign)."""
+    code that prepares an episode and the library versions (``simulation_versions``, the
+    bank's code: episodes prepared by other code are another campaign)."""
     from aligngym.scenarios.truth_cache import simulation_versions
     config = repr(replace(experiment.scenario_config(), source=""))   # not where it lies
     return json.loads(json.dumps({
