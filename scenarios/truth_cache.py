@@ -11,13 +11,14 @@ Entries live in ``$ALIGNGYM_TRUTH_CACHE`` (default ``$XDG_CACHE_HOME/aligngym/tr
 else ``~/.cache/aligngym/truth``; ``off`` disables the cache), one .npz per entry, named
 by a hash of what decides it: the simulation's inputs, the simulation code
 (``TRUTH_SOURCES``, hashed when the process loaded it: a filter's or an experiment's edit
-keeps the entries) and the versions of MuJoCo, NumPy, SciPy and the machine's
-architecture (and Numba's), so a changed simulation never loads an old entry (edit the code between
-runs, not during one). An entry is written whole or not at all (``atomic``); one that does not load is removed and simulated again; a cache that cannot
-be written (a full disk, no permission) is reported once and the run goes on without it.
-The directory is kept under ``TRUTH_CACHE_BYTES`` by removing the least recently used
-entries. An entry is computed under a lock file (``flock``) that its holder removes
-before letting go, so the cache holds no lock file between runs.
+keeps the entries) and the versions of MuJoCo, NumPy, SciPy and the machine's architecture
+(and Numba's), so a changed simulation never loads an old entry (edit the code between
+runs, not during one). An entry is written whole or not at all (``atomic``); one that does
+not load is removed and simulated again; a cache that cannot be written (a full disk, no
+permission) is reported once and the run goes on without it. The directory is kept under
+``TRUTH_CACHE_BYTES`` by removing the least recently used entries. An entry is computed
+under a lock file (``flock``) that its holder removes before letting go, so the cache
+holds no lock file between runs.
 """
 from __future__ import annotations
 

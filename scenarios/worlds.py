@@ -22,6 +22,7 @@ import numpy as np
 from aligngym.models.ship import HULL_SIZE_RANGE
 from aligngym.models.units import deg
 from aligngym.models.world import PrescribedWorld
+from aligngym.scenarios.truth_cache import in_truth_sources
 from aligngym.scenarios.world_truth import (Scenario, WorldTruth, cached_motion,
                                             dynamic_motion, motion_key,
                                             prescribed_world_truth, run_gimbal,
@@ -122,7 +123,6 @@ class World(ABC):
         hash of the defining module's source for any other (a user's, or one the package
         defines elsewhere, in an experiment say), so that editing it never serves its old
         truth."""
-        from aligngym.scenarios.truth_cache import in_truth_sources
         module = sys.modules.get(cls.__module__)
         if module is None or in_truth_sources(getattr(module, "__file__", None)):
             return kind
