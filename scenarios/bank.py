@@ -23,7 +23,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from aligngym.scenarios.config import ConfigError
-from aligngym.scenarios.truth_cache import simulation_code_sha256
+from aligngym.scenarios.truth_cache import prepared_code_sha256
 
 SPLITS: dict[str, tuple[int, int]] = {"train": (0, 1_600_000_000),
                                       "validation": (1_600_000_000, 1_800_000_000),
@@ -98,7 +98,7 @@ def bank_key(experiment) -> dict:
                                       {name: value for name, value in asdict(experiment).items()
                                        if name not in experiment.filter_settings}),
                                   "scenario_sha256": digest,
-                                  "code_sha256": simulation_code_sha256(),
+                                  "code_sha256": prepared_code_sha256(),
                                   "aligngym": release, "mujoco": mujoco.__version__,
                                   "numpy": numpy.__version__}, default=str))
 

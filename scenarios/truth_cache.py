@@ -128,6 +128,13 @@ def _library_versions() -> str:
             f"numba {numba} {platform.machine()}")
 
 
+def prepared_code_sha256() -> str:
+    """The hash of ``SIMULATION_SOURCES`` this process runs (``remember_code``: taken when
+    it loaded the simulation, not the files' now): the bank's key."""
+    remember_code()
+    return _CODE_SHA256
+
+
 @lru_cache(maxsize=1)
 def simulation_versions() -> str:
     """The preparation code's hash (``SIMULATION_SOURCES``) and the library versions that

@@ -65,3 +65,18 @@ def test_a_filter_setting_keeps_the_bank_and_an_episode_setting_moves_it(paper):
     assert bank_directory("bank", bank_key(retuned)) == key
     longer = replace(exp, fine_duration=exp.fine_duration + 10.0)
     assert bank_directory("bank", bank_key(longer)) != key
+
+
+def test_the_bank_is_keyed_on_the_code_the_process_runs(monkeypatch):
+    """The bank's code hash is the one this process took when it loaded the simulation
+    (``truth_cache.remember_code``), not the files' at the time of asking: code edited on
+    disk during a run cannot label the episodes the old code prepared."""
+    from aligngym.scenarios import truth_cache
+    exp = experiment("paper003")
+    truth_cache.remember_code()
+    before = bank_key(exp)["code_sha256"]
+    assert before == truth_cache._CODE_SHA256
+    monkeypatch.setattr(truth_cache, "simulation_code_sha256", lambda: "the files now")
+    assert bank_key(exp)["code_sha256"] == before
+    monkeypatch.setattr(truth_cache, "_CODE_SHA256", "another process's code")
+    assert bank_key(exp)["code_sha256"] == "another process's code"
