@@ -56,6 +56,12 @@ class FineResult:
     nis_dof: np.ndarray | None = None
     chunks: int = 1
 
+    @property
+    def seconds_per_episode_epoch(self) -> float:
+        """seconds_per_epoch shared among the B episodes (s): what results.csv and the
+        papers' summaries report per episode (summed over ``chunks``)."""
+        return self.seconds_per_epoch / self.C_s_n.shape[0]
+
 
 class AlignmentRun:
     """Filter ``filt`` on ``model`` (see the module docstring); staggered: one epoch per

@@ -145,6 +145,8 @@ def runge_kutta_points(x, T, transformed, C_b_p, f_b, v, w_ie, w_en, g, rate, la
                          np.empty(15))
     Cp, t = np.empty((3, 3)), np.empty(12)
     half, sixth = 0.5 * T, T / 6.0
+    # the four stages written out: a loop over them (stage and step from tuples) ran the
+    # step 15-20 % slower (paper 004's 32 episodes x 31 points)
     for b in range(B):
         for p in range(P):
             xp = x[b, p]

@@ -53,6 +53,8 @@ def cache_directory() -> Path | None:
     return Path(base) / "aligngym" / "truth"
 
 
+PACKAGE_ROOT = Path(__file__).resolve().parents[1]
+"""The package's source root, which ``TRUTH_SOURCES`` and ``SIMULATION_SOURCES`` are in."""
 TRUTH_SOURCES = ("models", "sensors", "scenarios/simulate.py", "scenarios/config.py",
                  "scenarios/config_keys.py", "scenarios/config_tables.py",
                  "scenarios/worlds.py", "scenarios/world_truth.py")
@@ -68,13 +70,12 @@ experiment's edit keeps the truth entries: they depend on ``TRUTH_SOURCES`` alon
 
 def _sources_sha256(parts: tuple[str, ...]) -> str:
     """A hash of the package's .py files under parts (in name order)."""
-    root = Path(__file__).resolve().parents[1]        # the package's source root
     digest = hashlib.sha256()
     for part in parts:
-        path = root / part
+        path = PACKAGE_ROOT / part
         files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
         for f in files:
-            digest.update(str(f.relative_to(root)).encode())
+            digest.update(str(f.relative_to(PACKAGE_ROOT)).encode())
             digest.update(f.read_bytes())
     return digest.hexdigest()
 
@@ -84,9 +85,8 @@ def in_truth_sources(path: str | Path | None) -> bool:
     entries' names)."""
     if path is None:
         return False
-    root = Path(__file__).resolve().parents[1]
     path = Path(path).resolve()
-    return any(path == root / part or (root / part) in path.parents
+    return any(path == PACKAGE_ROOT / part or (PACKAGE_ROOT / part) in path.parents
                for part in TRUTH_SOURCES)
 
 

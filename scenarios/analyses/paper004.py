@@ -56,7 +56,7 @@ def run_metrics(run, episodes: list[GnssEpisode], experiment: Experiment) -> dic
         "heading_inside_3sigma": float(inside[sel].mean()),
         "final_heading_error_deg": float(np.sqrt(np.mean(run.error_n[sel, -1, 2] ** 2)) / deg),
         # an episode's share, as results.csv's (its batch's chunks summed: ``chunks``)
-        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0],
+        "ms_per_epoch": r.seconds_per_episode_epoch * 1e3,
         "ms_per_epoch_chunks": int(r.chunks),
     }
 

@@ -175,7 +175,7 @@ def episode_metrics(run: FilterRun, b: int, experiment: Experiment,
         "diverged": bool(run.status[b] == "diverged"),
         "diverged_time_s": float(r.diverged_time[b] - r.t[0]) if r.diverged[b] else None,
         "covariance_repairs": int(r.repairs[b]),
-        "ms_per_epoch": r.seconds_per_epoch * 1e3 / r.C_s_n.shape[0],
+        "ms_per_epoch": r.seconds_per_episode_epoch * 1e3,
         "ms_per_epoch_chunks": int(r.chunks)})
     return row
 

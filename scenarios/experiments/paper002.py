@@ -115,7 +115,7 @@ def paper002_summary(result: CampaignResult) -> dict:
         stats.update({
             "convergence_s": float(np.mean(run.heading_convergence)),
             "points": point_count(run.filter),
-            "us_per_epoch": run.result.seconds_per_epoch * 1e6 / run.error_n.shape[0]})
+            "us_per_epoch": run.result.seconds_per_episode_epoch * 1e6})
         out[run.filter] = stats
     return out
 
